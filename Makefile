@@ -1,0 +1,43 @@
+# assign5: FastSLAM for ROS 1. `make demo` and `make test` work on a fresh Debian 12.
+SHELL := /bin/bash
+# Debian's ROS runs on /usr/bin/python3: put the project venv and /usr/bin before any pyenv.
+export PATH := $(CURDIR)/.venv/bin:/usr/bin:/bin:$(PATH)
+PY := $(CURDIR)/.venv/bin/python
+SETUP_STAMP := .ws/.built
+
+.PHONY: setup test test-unit test-ros demo bench screenshot clean
+.DEFAULT_GOAL := help
+
+help:
+	@echo "make setup       install Debian ROS packages, .venv and build the catkin workspace in .ws/"
+	@echo "make demo        headless SLAM run on the built-in simulator, results in out/demo/"
+	@echo "make test        every test (pytest + rostest), ends with 'N passed, M failed'"
+	@echo "make bench       speed, memory and accuracy benchmarks (see docs/benchmarks.md)"
+	@echo "make screenshot  RViz under xvfb during a simulator run -> docs/rviz.png"
+
+setup:
+	@bash scripts/setup.sh
+
+$(SETUP_STAMP): CMakeLists.txt package.xml setup.py scripts/setup.sh scripts/debian-packages.txt scripts/requirements-dev.txt
+	@bash scripts/setup.sh
+
+test: $(SETUP_STAMP)
+	@bash scripts/run-tests.sh all
+
+test-unit: $(SETUP_STAMP)
+	@bash scripts/run-tests.sh pytest
+
+test-ros: $(SETUP_STAMP)
+	@bash scripts/run-tests.sh rostest
+
+demo: $(SETUP_STAMP)
+	@bash scripts/demo.sh
+
+bench: $(SETUP_STAMP)
+	@cd $(CURDIR) && PYTHONPATH=src $(PY) -m fastslam.bench
+
+screenshot: $(SETUP_STAMP)
+	@bash scripts/screenshot.sh
+
+clean:
+	rm -rf .ws out

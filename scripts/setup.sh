@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Prepares a fresh Debian 12 machine for assign5; safe to re-run.
+#   1. Debian's ROS 1 packages (apt-get, as root or through sudo)
+#   2. .venv from /usr/bin/python3 with the tools Debian lacks
+#   3. a catkin workspace in .ws/ holding this package, built with catkin_make
+set -eo pipefail
+here="$(cd "$(dirname "$0")/.." && pwd)"
+cd "$here"
+# Debian's ROS runs on /usr/bin/python3; a pyenv python3 first on PATH breaks catkin.
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
+
+die() { echo "setup: $*" >&2; exit 1; }
+
+if [ ! -r /etc/debian_version ] || ! command -v apt-get >/dev/null || ! command -v dpkg-query >/dev/null; then
+  die "this machine is not Debian. Install ROS 1 (rospy, roslaunch, rostest, rosbag, tf2_ros, the sensor/nav/geometry/std/visualization message packages, catkin) with Python 3 and numpy by hand, then run 'make test' again. Needed Debian package names: $(grep -v '^#' scripts/debian-packages.txt | tr '\n' ' ')"
+fi
+
+mapfile -t pkgs < <(grep -v '^#' scripts/debian-packages.txt | sed '/^$/d')
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing Debian packages: ${missing[*]}"
+  if [ "$(id -u)" -eq 0 ]; then sudo=(); 
+  elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then sudo=(sudo -n);
+  else die "need root to install: ${missing[*]}. Run as root: apt-get update && apt-get install -y ${missing[*]}"; fi
+  "${sudo[@]}" apt-get update -qq || die "apt-get update failed (no network to Debian's mirrors?)"
+  DEBIAN_FRONTEND=noninteractive "${sudo[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" \
+    || die "apt-get install failed for: ${missing[*]}"
+fi
+
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c 'import rospy' 2>/dev/null; then
+  echo "setup: creating .venv from /usr/bin/python3 (--system-site-packages)"
+  rm -rf .venv
+  /usr/bin/python3 -m venv --system-site-packages .venv
+fi
+if ! cmp -s scripts/requirements-dev.txt .venv/.requirements 2>/dev/null; then
+  .venv/bin/python -m pip install -q --disable-pip-version-check -r scripts/requirements-dev.txt \
+    || die "pip install of scripts/requirements-dev.txt failed"
+  cp scripts/requirements-dev.txt .venv/.requirements
+fi
+
+mkdir -p .ws/src
+[ -L .ws/src/assign5 ] || ln -sfn "$here" .ws/src/assign5
+stamp=.ws/.built
+if [ ! -f "$stamp" ] || [ -n "$(find CMakeLists.txt package.xml setup.py src -maxdepth 1 -newer "$stamp" -print -quit)" ]; then
+  echo "setup: catkin_make in .ws/"
+  (cd .ws && catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON > build.log 2>&1) \
+    || { tail -30 .ws/build.log; die "catkin_make failed (full log: .ws/build.log)"; }
+  touch "$stamp"
+fi
+echo "setup: ok"

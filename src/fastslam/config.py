@@ -1,0 +1,184 @@
+"""One typed, validated configuration for the FastSLAM core.
+
+Defaults are the CS-475 assignment: ~20 particles, a 10 m x 10 m grid at 0.05 m
+initialised to unknown, additive pose noise switched by ``toggle_noise``, the weight
+1/(||d - z|| + 1) and resampling at every step. The improved mode (scan-matching
+proposal, likelihood weights, adaptive resampling, update gating) is selected by
+fields that default to the assignment's behaviour.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+
+class ConfigError(ValueError):
+    """A parameter is unknown, of the wrong type or out of its allowed range."""
+
+
+def _num(default: float, lo: float, hi: float, doc: str) -> Any:
+    return field(default=default, metadata={"range": (lo, hi), "doc": doc})
+
+
+def _choice(default: str, choices: tuple[str, ...], doc: str) -> Any:
+    return field(default=default, metadata={"choices": choices, "doc": doc})
+
+
+@dataclass(frozen=True)
+class SlamConfig:
+    """FastSLAM parameters; units in each field's doc."""
+
+    # Filter
+    particles: int = _num(20, 1, 10000, "number of particles N")
+    seed: int | None = field(default=None, metadata={"range": (0, 2**32 - 1), "doc": "RNG seed; null = fresh"})
+    # Map (assignment 3.1): a grid centred on the start pose, all cells unknown
+    map_resolution: float = _num(0.05, 0.005, 1.0, "cell size [m]")
+    map_width: float = _num(10.0, 0.5, 2000.0, "initial map extent along x [m]")
+    map_height: float = _num(10.0, 0.5, 2000.0, "initial map extent along y [m]")
+    map_grow: bool = field(default=True, metadata={"doc": "grow the grid when the robot nears its edge"})
+    init_sigma_xy: float = _num(0.0, 0.0, 10.0, "spread of the initial particle positions [m]")
+    init_sigma_theta: float = _num(0.0, 0.0, math.pi, "spread of the initial headings [rad]")
+    # Motion (assignment 3.2)
+    motion_model: str = _choice("assignment", ("assignment", "odometry"),
+                                "assignment: dr along the old heading; odometry: rot1-trans-rot2")
+    toggle_noise: int = _num(1, 0, 1, "1 adds motion noise, 0 moves particles exactly by odometry")
+    sigma_x: float = _num(0.005, 0.0, 10.0, "std-dev of the additive x noise per update [m]")
+    sigma_y: float = _num(0.005, 0.0, 10.0, "std-dev of the additive y noise per update [m]")
+    sigma_theta: float = _num(0.005, 0.0, math.pi, "std-dev of the additive heading noise per update [rad]")
+    srr: float = _num(0.1, 0.0, 10.0, "odometry model: translation noise from translation")
+    srt: float = _num(0.2, 0.0, 10.0, "odometry model: translation noise from rotation [m/rad]")
+    str: float = _num(0.1, 0.0, 10.0, "odometry model: rotation noise from translation [rad/m]")
+    stt: float = _num(0.2, 0.0, 10.0, "odometry model: rotation noise from rotation")
+    # Grid update (assignment 3.3), log-odds
+    l_free: float = _num(-0.4, -20.0, -1e-6, "log-odds added to cells a beam crosses")
+    l_occ: float = _num(0.85, 1e-6, 20.0, "log-odds added to the cell a beam ends in")
+    l_min: float = _num(-5.0, -100.0, -1e-6, "lower clamp of a cell's log-odds")
+    l_max: float = _num(5.0, 1e-6, 100.0, "upper clamp of a cell's log-odds")
+    # Beams (assignment tip 1): field of view and every k-th beam
+    fov_min: float = _num(-180.0, -180.0, 180.0, "first beam angle used, robot frame [deg]")
+    fov_max: float = _num(180.0, -180.0, 180.0, "last beam angle used, robot frame [deg]")
+    beam_step: int = _num(1, 1, 10000, "use every k-th beam")
+    max_range: float = _num(3.5, 0.1, 200.0, "ranges are used up to this distance [m]")
+    no_return_range: float = _num(3.5, 0.0, 200.0, "a beam with no return clears free space this far; 0 = not at all [m]")
+    # Weights (assignment 3.4) and resampling (3.5)
+    weight_model: str = _choice("assignment", ("assignment", "likelihood"),
+                                "assignment: 1/(||d-z||+1); likelihood: endpoint model in log-weights")
+    likelihood_sigma: float = _num(0.05, 1e-3, 10.0, "likelihood model: endpoint std-dev [m]")
+    likelihood_max_dist: float = _num(0.3, 1e-3, 10.0, "likelihood model: distance cap per beam [m]")
+    likelihood_gain: float = _num(1.0, 1e-6, 1.0, "likelihood model: exponent on the scan likelihood (smoothing)")
+    resample_threshold: float = _num(1.0, 0.0, 1.0, "resample when Neff < threshold*N; 1.0 = every update")
+    # Proposal (improved mode)
+    proposal: str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
+    match_min_score: float = _num(0.5, 0.0, 1.0, "scan-match score (fraction of beams on the map) needed to trust it")
+    match_min_known: int = _num(100, 0, 10**9, "known cells a particle's map needs before matching")
+    match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
+    match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")
+    match_sigma_xy: float = _num(0.01, 0.0, 1.0, "spread of the sample around a matched pose [m]")
+    match_sigma_theta: float = _num(0.005, 0.0, 1.0, "spread of the sample around a matched pose [rad]")
+    # Update gating (improved mode); zeros process every scan as the assignment does
+    linear_update: float = _num(0.0, 0.0, 100.0, "process a scan after this much travel [m]")
+    angular_update: float = _num(0.0, 0.0, 2 * math.pi, "... or this much rotation [rad]")
+    temporal_update: float = _num(-1.0, -1.0, 3600.0, "... or this much time; < 0 disables [s]")
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _check(f, getattr(self, f.name))
+        if self.fov_min >= self.fov_max:
+            raise ConfigError(f"fov_min={self.fov_min} must be less than fov_max={self.fov_max}")
+        if self.l_min >= self.l_max:
+            raise ConfigError(f"l_min={self.l_min} must be less than l_max={self.l_max}")
+        for name in ("map_width", "map_height"):
+            if getattr(self, name) < 4 * self.map_resolution:
+                raise ConfigError(f"{name}={getattr(self, name)} must be at least 4 cells of map_resolution")
+
+    # Derived values, computed once
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        """(H, W) cells of the initial grid."""
+        return (int(round(self.map_height / self.map_resolution)),
+                int(round(self.map_width / self.map_resolution)))
+
+    @property
+    def motion_sigmas(self) -> np.ndarray:
+        """(3,) additive noise std-devs, zero when the noise toggle is off."""
+        return np.array([self.sigma_x, self.sigma_y, self.sigma_theta]) * self.toggle_noise
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> SlamConfig:
+        """Build from a flat mapping; unknown keys and bad values raise ConfigError."""
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - set(known))
+        if unknown:
+            raise ConfigError(f"unknown parameter '{unknown[0]}' (known: {', '.join(sorted(known))})")
+        return cls(**{k: _coerce(known[k], v) for k, v in values.items()})
+
+    @classmethod
+    def from_yaml(cls, path: str | Path, overrides: Mapping[str, Any] | None = None) -> SlamConfig:
+        import yaml  # only file loading needs it
+
+        data = yaml.safe_load(Path(path).read_text()) or {}
+        if not isinstance(data, dict):
+            raise ConfigError(f"{path}: expected a mapping of parameters, got {type(data).__name__}")
+        data.update(overrides or {})
+        return cls.from_dict(data)
+
+    def replace(self, **changes: Any) -> SlamConfig:
+        return self.from_dict({**self.to_dict(), **changes})
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """'key=value' from a command line, the value read as YAML (numbers, true, null)."""
+    import yaml
+
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise ConfigError(f"override '{text}' must look like key=value")
+    return key.strip(), yaml.safe_load(value)
+
+
+def _coerce(f: dataclasses.Field, value: Any) -> Any:
+    kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
+    try:
+        if value is None and "None" in kind:
+            return None
+        if kind.startswith("bool"):
+            if isinstance(value, bool):
+                return value
+            if value in (0, 1):
+                return bool(value)
+            raise TypeError
+        if kind.startswith("int"):
+            if isinstance(value, bool) or float(value) != int(value):
+                raise TypeError
+            return int(value)
+        if kind.startswith("float"):
+            if isinstance(value, bool):
+                raise TypeError
+            return float(value)
+        if kind.startswith("str"):
+            if not isinstance(value, str):
+                raise TypeError
+            return value
+    except (TypeError, ValueError, OverflowError):
+        raise ConfigError(f"{f.name}={value!r} must be of type {kind}") from None
+    return value
+
+
+def _check(f: dataclasses.Field, value: Any) -> None:
+    meta = f.metadata
+    if value is None:
+        return
+    if "range" in meta:
+        lo, hi = meta["range"]
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
+            raise ConfigError(f"{f.name}={value!r} must be in [{lo}, {hi}]")
+    if "choices" in meta and value not in meta["choices"]:
+        raise ConfigError(f"{f.name}={value!r} must be one of {', '.join(meta['choices'])}")

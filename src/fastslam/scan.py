@@ -1,0 +1,84 @@
+"""A laser scan as the core sees it, and the beams an update uses."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .config import SlamConfig
+from .geometry import wrap_angle
+
+
+@dataclass(frozen=True)
+class Scan:
+    """One sweep, already in the robot's base frame.
+
+    ranges: (M,) measured ranges [m]; NaN, inf or >= range_max mean no return.
+    angles: (M,) beam directions in the base frame [rad] (the laser's mounting yaw and
+        any upside-down mounting already applied).
+    mount: (x, y) of the laser origin in the base frame [m].
+    stamp: time of the sweep [s].
+    """
+
+    ranges: NDArray[np.float64]
+    angles: NDArray[np.float64]
+    range_min: float
+    range_max: float
+    mount: tuple[float, float] = (0.0, 0.0)
+    stamp: float = 0.0
+
+    @classmethod
+    def from_laser(cls, ranges: NDArray, angle_min: float, angle_increment: float,
+                   range_min: float, range_max: float, *, mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                   upside_down: bool = False, stamp: float = 0.0) -> Scan:
+        """From LaserScan fields; mount = (x, y, yaw) of the laser in the base frame.
+
+        An upside-down laser sweeps the other way round as seen from above.
+        """
+        r = np.asarray(ranges, dtype=np.float64)
+        a = angle_min + angle_increment * np.arange(len(r))
+        a = -a if upside_down else a
+        return cls(ranges=r, angles=wrap_angle(a + mount[2]), range_min=float(range_min),
+                   range_max=float(range_max), mount=(float(mount[0]), float(mount[1])), stamp=float(stamp))
+
+
+@dataclass(frozen=True)
+class Beams:
+    """The beams of one scan an update uses, classified.
+
+    angles: (B,) base-frame directions; ranges: (B,) measured ranges.
+    hit: (B,) a return inside max_range: weighs the particle and marks its end cell.
+    free_range: (B,) the distance each beam clears (0: it clears nothing) [m].
+    """
+
+    angles: NDArray[np.float64]
+    ranges: NDArray[np.float64]
+    hit: NDArray[np.bool_]
+    free_range: NDArray[np.float64]
+    range_min: float
+    mount: tuple[float, float] = field(default=(0.0, 0.0))
+
+
+def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
+    """Field of view, every k-th beam, and the class of each reading.
+
+    Readings below range_min (zero, negative) are ignored; NaN, inf and >= range_max
+    are no-returns that clear free space up to no_return_range; returns beyond the
+    filter's max_range clear up to max_range and mark nothing.
+    """
+    deg = np.degrees(wrap_angle(scan.angles))
+    keep = (deg >= cfg.fov_min) & (deg <= cfg.fov_max)
+    keep &= (np.arange(len(deg)) % cfg.beam_step) == 0
+    z = scan.ranges[keep]
+    with np.errstate(invalid="ignore"):
+        no_return = ~np.isfinite(z) | (z >= scan.range_max)
+        short = ~no_return & (z < scan.range_min)
+    ok = ~no_return & ~short
+    hit = ok & (z < cfg.max_range)
+    free = np.zeros(len(z))
+    free[hit] = z[hit]
+    free[ok & ~hit] = cfg.max_range
+    free[no_return] = min(cfg.no_return_range, cfg.max_range)
+    return Beams(angles=scan.angles[keep], ranges=np.where(ok, z, np.inf), hit=hit,
+                 free_range=free, range_min=scan.range_min, mount=scan.mount)

@@ -156,7 +156,7 @@ def _coerce(f: dataclasses.Field, value: Any) -> Any:
                 return bool(value)
             raise TypeError
         if kind.startswith("int"):
-            if isinstance(value, bool) or float(value) != int(value):
+            if float(value) != int(value):  # True/False pass as 1/0 (toggle_noise)
                 raise TypeError
             return int(value)
         if kind.startswith("float"):

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from . import raycast
 from .config import SlamConfig
-from .geometry import circular_mean, wrap_angle
+from .geometry import circular_mean, compose, wrap_angle
 from .grid import GridMaps
 from .motion import sample_motion_assignment, sample_motion_odometry
 from .resample import low_variance_indices, neff, slot_parents
@@ -70,6 +70,11 @@ class FastSlam:
         self._hist_parent: list[NDArray[np.intp]] = []
         self._hist_stamps: list[float] = []
 
+    def rebase_odometry(self, odom: NDArray) -> None:
+        """Takes odom as the new reference without moving the particles (after a jump)."""
+        if self._odom is not None:
+            self._odom = np.asarray(odom, dtype=np.float64)
+
     @property
     def weights(self) -> NDArray[np.float64]:
         """(N,) normalised weights."""
@@ -83,7 +88,9 @@ class FastSlam:
             return StepInfo(processed=False, neff=neff(self.weights), best=self.best)
         start = time.perf_counter()
         beams = select_beams(scan, self.cfg)
-        if not first:
+        if first:
+            self._anchor(odom)
+        else:
             self._move(odom)                                    # 1. motion update
         self._odom, self._stamp = odom, scan.stamp
         grew, clipped = self._cover_beams()
@@ -101,6 +108,11 @@ class FastSlam:
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched)
 
     # -- the named steps -------------------------------------------------------------
+    def _anchor(self, odom: NDArray) -> None:
+        """First scan: the map frame is the odometry frame, the grid centred on the robot."""
+        self.poses = compose(odom, self.poses)
+        self.grid.origin = self.grid.origin + odom[:2]
+
     def _due(self, odom: NDArray, stamp: float) -> bool:
         """Gating: process after enough travel, turn or time (all zero: every scan)."""
         cfg = self.cfg

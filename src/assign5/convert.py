@@ -1,0 +1,107 @@
+"""ROS messages <-> the core's numpy types. Pure functions, no node state."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import rospy
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Quaternion, TransformStamped
+from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
+from sensor_msgs.msg import LaserScan
+
+from fastslam.geometry import yaw_from_quaternion
+from fastslam.grid import GridMaps, logodds_to_occupancy
+from fastslam.scan import Scan
+
+
+class BadMessage(ValueError):
+    """A message the node drops, with the reason for the log."""
+
+
+def quaternion_from_yaw(yaw: float) -> Quaternion:
+    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+
+def pose_msg(x: float, y: float, yaw: float) -> Pose:
+    p = Pose()
+    p.position.x, p.position.y = float(x), float(y)
+    p.orientation = quaternion_from_yaw(float(yaw))
+    return p
+
+
+def odom_pose(msg) -> np.ndarray:
+    """(3,) x, y, yaw of a nav_msgs/Odometry; BadMessage if it cannot be used."""
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    values = (p.x, p.y, q.x, q.y, q.z, q.w)
+    if not all(math.isfinite(v) for v in values):
+        raise BadMessage("odometry with NaN or inf")
+    if q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w < 1e-12:
+        raise BadMessage("odometry with an all-zero quaternion")
+    # A quaternion that is not normalised still has a well-defined heading.
+    return np.array([p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)])
+
+
+def check_scan(msg: LaserScan) -> None:
+    """Rejects scans whose geometry is unusable (readings themselves are classified later)."""
+    n = len(msg.ranges)
+    if n == 0:
+        raise BadMessage("empty scan")
+    for name in ("angle_min", "angle_increment", "range_min", "range_max"):
+        if not math.isfinite(getattr(msg, name)):
+            raise BadMessage(f"scan {name} is {getattr(msg, name)}")
+    if msg.angle_increment == 0:
+        raise BadMessage("scan angle_increment is 0")
+    if msg.range_max <= 0 or msg.range_max <= msg.range_min:
+        raise BadMessage(f"scan range_max={msg.range_max} must exceed range_min={msg.range_min} and 0")
+    if math.isfinite(msg.angle_max):
+        implied = (msg.angle_max - msg.angle_min) / msg.angle_increment + 1
+        # One beam either way is common (0..2pi lidars count the fence post differently).
+        if abs(implied - n) > 1.5:
+            raise BadMessage(f"scan has {n} ranges but its angles imply {implied:.0f}")
+
+
+def scan_from_msg(msg: LaserScan, mount: tuple[float, float, float], upside_down: bool) -> Scan:
+    return Scan.from_laser(np.asarray(msg.ranges, dtype=np.float64), msg.angle_min, msg.angle_increment,
+                           msg.range_min, msg.range_max, mount=mount, upside_down=upside_down,
+                           stamp=msg.header.stamp.to_sec())
+
+
+def mount_from_transform(t: TransformStamped) -> tuple[tuple[float, float, float], bool]:
+    """Laser pose (x, y, yaw) in the base frame and whether it is upside down."""
+    q = t.transform.rotation
+    x, y, z, w = q.x, q.y, q.z, q.w
+    r00 = 1 - 2 * (y * y + z * z)
+    r10 = 2 * (x * y + w * z)
+    r22 = 1 - 2 * (x * x + y * y)
+    if abs(abs(r22) - 1) > 0.01:
+        raise BadMessage("laser is not mounted planar (its z axis is not vertical)")
+    return (t.transform.translation.x, t.transform.translation.y, math.atan2(r10, r00)), r22 < 0
+
+
+def grid_msgs(grid: GridMaps, n: int, frame: str, stamp: rospy.Time) -> tuple[OccupancyGrid, MapMetaData]:
+    """OccupancyGrid and MapMetaData of particle n's map."""
+    h, w = grid.shape
+    meta = MapMetaData(map_load_time=stamp, resolution=grid.resolution, width=w, height=h)
+    meta.origin = pose_msg(grid.origin[0], grid.origin[1], 0.0)
+    msg = OccupancyGrid(info=meta)
+    msg.header.frame_id, msg.header.stamp = frame, stamp
+    # int8[] serialises from a sequence of ints (bytes would read as 0..255).
+    msg.data = logodds_to_occupancy(grid.logodds[n], grid.scale).ravel().tolist()
+    return msg, meta
+
+
+def pose_array(poses: np.ndarray, frame: str, stamp: rospy.Time) -> PoseArray:
+    msg = PoseArray(poses=[pose_msg(*p) for p in poses])
+    msg.header.frame_id, msg.header.stamp = frame, stamp
+    return msg
+
+
+def path_msg(traj: np.ndarray, frame: str, stamp: rospy.Time) -> Path:
+    """traj: (T, 4) rows t, x, y, theta."""
+    msg = Path()
+    msg.header.frame_id, msg.header.stamp = frame, stamp
+    for t, x, y, th in traj:
+        ps = PoseStamped(pose=pose_msg(x, y, th))
+        ps.header.frame_id, ps.header.stamp = frame, rospy.Time.from_sec(float(t))
+        msg.poses.append(ps)
+    return msg

@@ -1,0 +1,244 @@
+"""The FastSLAM ROS node: messages in, one core call per scan, messages out."""
+from __future__ import annotations
+
+import os
+import threading
+import traceback
+
+import numpy as np
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped, TransformStamped
+from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry, Path
+from nav_msgs.srv import GetMap, GetMapResponse
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger, TriggerResponse
+
+from fastslam.config import SlamConfig
+from fastslam.geometry import compose, inverse
+from fastslam.io.mapfile import MapSaveError, save_map
+from fastslam.odombuffer import OdomBuffer
+from fastslam.slam import FastSlam
+
+from . import convert
+from .convert import BadMessage
+from .params import NodeConfig
+
+
+class SlamNode:
+    """Owns the filter; the scan callback runs it, the others only read or buffer."""
+
+    def __init__(self, cfg: NodeConfig, slam_cfg: SlamConfig) -> None:
+        self.cfg = cfg
+        self.slam = FastSlam(slam_cfg)
+        self.lock = threading.RLock()  # the filter, the odometry buffer, map->odom
+        self.odom = OdomBuffer(cfg.odom_buffer)
+        self.rebase = False            # odometry jumped: take its next pose as a new origin
+        self.map_to_odom = np.zeros(3)
+        self.mounts: dict[str, tuple[tuple[float, float, float], bool]] = {}
+        self.last_stamp: float | None = None
+        self.last_map_stamp = -np.inf
+        self.updates = 0
+        self.dropped: dict[str, int] = {}
+        self.update_ms: list[float] = []
+
+        self.tf_buffer = tf2_ros.Buffer(rospy.Duration(30.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        self.tf_out = tf2_ros.TransformBroadcaster()
+        self.pub_particles = rospy.Publisher("particles", PoseArray, queue_size=1)
+        self.pub_map = rospy.Publisher("map", OccupancyGrid, queue_size=1, latch=True)
+        self.pub_meta = rospy.Publisher("map_metadata", MapMetaData, queue_size=1, latch=True)
+        self.pub_pose = rospy.Publisher("~pose", PoseWithCovarianceStamped, queue_size=1)
+        self.pub_path = rospy.Publisher("~trajectory", Path, queue_size=1, latch=True)
+        self.pub_neff = rospy.Publisher("~neff", Float64, queue_size=1)
+        self.pub_time = rospy.Publisher("~update_time", Float64, queue_size=1)
+        self.pub_debug = [rospy.Publisher(f"~particle_map_{i}", OccupancyGrid, queue_size=1, latch=True)
+                          for i in range(cfg.debug_maps)]
+        self.srv_map = rospy.Service("dynamic_map", GetMap, self.on_get_map)
+        self.srv_save = rospy.Service("~save_map", Trigger, self.on_save_map)
+        self.sub_odom = rospy.Subscriber(cfg.odom_topic, Odometry, self.on_odom, queue_size=50)
+        self.sub_scan = rospy.Subscriber(cfg.scan_topic, LaserScan, self.on_scan,
+                                         queue_size=cfg.queue_size, buff_size=2**24)
+        if cfg.transform_publish_period > 0:
+            self.tf_timer = rospy.Timer(rospy.Duration(cfg.transform_publish_period), self.on_tf_timer)
+        rospy.on_shutdown(self.on_shutdown)
+        rospy.loginfo(f"FastSLAM: {slam_cfg.particles} particles, {slam_cfg.map_resolution} m cells, "
+                      f"{cfg.scan_topic} + {cfg.odom_topic} -> map in '{cfg.map_frame}'")
+
+    # -- inputs ----------------------------------------------------------------------
+    def on_odom(self, msg: Odometry) -> None:
+        try:
+            pose = convert.odom_pose(msg)
+            t = msg.header.stamp.to_sec()
+            with self.lock:
+                latest = self.odom.latest
+                if latest is not None and t < latest[0]:
+                    return  # older than what we have: the scan side notices a restart
+                if latest is not None and np.hypot(*(pose[:2] - latest[1][:2])) > self.cfg.max_odom_jump:
+                    rospy.logwarn(f"odometry jumped {np.hypot(*(pose[:2] - latest[1][:2])):.2f} m "
+                                  f"(> max_odom_jump {self.cfg.max_odom_jump}): treating it as a kidnap, "
+                                  "the jump is not integrated")
+                    self.odom.clear()
+                    self.rebase = True
+                self.odom.add(t, pose)
+        except BadMessage as err:
+            self._drop(f"odometry: {err}")
+
+    def on_scan(self, msg: LaserScan) -> None:
+        try:
+            self._process(msg)
+        except BadMessage as err:
+            self._drop(str(err))
+        except Exception:  # a callback must never take the node down
+            rospy.logerr_throttle(5.0, "scan update failed:\n" + traceback.format_exc())
+
+    def _process(self, msg: LaserScan) -> None:
+        convert.check_scan(msg)
+        stamp = msg.header.stamp.to_sec()
+        now = rospy.Time.now().to_sec()
+        if stamp <= 0:
+            raise BadMessage("scan stamped zero")
+        if now > 0 and stamp > now + self.cfg.max_future:
+            raise BadMessage(f"scan stamped {stamp - now:.1f} s in the future")
+        with self.lock:
+            if self.last_stamp is not None and stamp < self.last_stamp:
+                self._reset(f"time went backwards ({self.last_stamp:.2f} -> {stamp:.2f} s): "
+                            "bag restarted or looped?")
+            mount, upside_down = self._mount(msg.header.frame_id)
+            odom = self._odom_at(stamp)
+            scan = convert.scan_from_msg(msg, mount, upside_down)
+            if self.rebase:
+                self.slam.rebase_odometry(odom)
+                self.rebase = False
+            info = self.slam.step(odom, scan)
+            self.last_stamp = stamp
+            if not info.processed:
+                return
+            best = self.slam.poses[self.slam.best]
+            self.map_to_odom = compose(best, inverse(odom))
+            self.updates += 1
+        self._publish_update(msg.header.stamp, info)
+        if stamp - self.last_map_stamp >= self.cfg.map_update_interval:
+            self.last_map_stamp = stamp
+            self.publish_map(msg.header.stamp)
+
+    def _mount(self, frame: str) -> tuple[tuple[float, float, float], bool]:
+        """The laser's pose on the base, looked up in tf once per frame."""
+        if frame not in self.mounts:
+            try:
+                t = self.tf_buffer.lookup_transform(self.cfg.base_frame, frame, rospy.Time(0),
+                                                    rospy.Duration(self.cfg.tf_timeout))
+            except (tf2_ros.LookupException, tf2_ros.ConnectivityException,
+                    tf2_ros.ExtrapolationException, tf2_ros.InvalidArgumentException) as err:
+                raise BadMessage(f"no transform {self.cfg.base_frame} -> '{frame}' in tf: {err}") from None
+            self.mounts[frame] = convert.mount_from_transform(t)
+            rospy.loginfo(f"laser '{frame}' on '{self.cfg.base_frame}': x y yaw = "
+                          f"{np.round(self.mounts[frame][0], 3).tolist()}, upside down: {self.mounts[frame][1]}")
+        return self.mounts[frame]
+
+    def _odom_at(self, stamp: float) -> np.ndarray:
+        pose = self.odom.at(stamp, self.cfg.odom_timeout)
+        if pose is not None:
+            return pose
+        latest = self.odom.latest
+        if latest is None:
+            raise BadMessage(f"no odometry received yet on '{self.sub_odom.resolved_name}'")
+        raise BadMessage(f"no odometry at the scan's time (latest odometry is {stamp - latest[0]:+.2f} s "
+                         f"from the scan; odom_timeout {self.cfg.odom_timeout} s)")
+
+    def _reset(self, why: str) -> None:
+        rospy.logwarn(f"resetting the filter: {why}")
+        self.slam.reset()
+        self.odom.clear()
+        self.tf_buffer.clear()
+        self.map_to_odom = np.zeros(3)
+        self.last_stamp = None
+        self.last_map_stamp = -np.inf
+
+    def _drop(self, why: str) -> None:
+        key = why.split(":")[0]
+        self.dropped[key] = self.dropped.get(key, 0) + 1
+        rospy.logwarn_throttle(5.0, f"dropping message: {why} ({self.dropped[key]} so far)")
+
+    # -- outputs ---------------------------------------------------------------------
+    def _publish_update(self, stamp: rospy.Time, info) -> None:
+        frame = self.cfg.map_frame
+        with self.lock:
+            poses = self.slam.poses.copy()
+            mean, cov = self.slam.mean_pose(), self.slam.covariance()
+        self.pub_particles.publish(convert.pose_array(poses, frame, stamp))
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id, msg.header.stamp = frame, stamp
+        msg.pose.pose = convert.pose_msg(*mean)
+        c = np.zeros((6, 6))
+        c[np.ix_([0, 1, 5], [0, 1, 5])] = cov
+        msg.pose.covariance = c.ravel().tolist()
+        self.pub_pose.publish(msg)
+        self.pub_neff.publish(Float64(info.neff))
+        ms = 1000.0 * info.seconds
+        self.pub_time.publish(Float64(ms))
+        self.update_ms.append(ms)
+        if len(self.update_ms) >= 50:
+            rospy.loginfo(f"{self.updates} updates, {np.mean(self.update_ms):.1f} ms mean "
+                          f"({np.max(self.update_ms):.1f} max) per update, Neff {info.neff:.1f}, "
+                          f"dropped {sum(self.dropped.values())}")
+            self.update_ms.clear()
+
+    def publish_map(self, stamp: rospy.Time | None = None) -> None:
+        stamp = stamp or rospy.Time.now()
+        with self.lock:
+            grid, best = self.slam.grid, self.slam.best
+            msg, meta = convert.grid_msgs(grid, best, self.cfg.map_frame, stamp)
+            order = np.argsort(-self.slam.weights)
+            debug = [convert.grid_msgs(grid, int(i), self.cfg.map_frame, stamp)[0]
+                     for i in order[:len(self.pub_debug)]]
+            path = convert.path_msg(self.slam.trajectory(), self.cfg.map_frame, stamp)
+        self.pub_map.publish(msg)
+        self.pub_meta.publish(meta)
+        self.pub_path.publish(path)
+        for pub, m in zip(self.pub_debug, debug):
+            pub.publish(m)
+
+    def on_tf_timer(self, _event) -> None:
+        now = rospy.Time.now()
+        if now.is_zero():
+            return  # sim time not started: never publish a transform stamped 0
+        with self.lock:
+            x, y, yaw = self.map_to_odom
+        t = TransformStamped()
+        t.header.stamp = now + rospy.Duration(self.cfg.tf_delay)
+        t.header.frame_id, t.child_frame_id = self.cfg.map_frame, self.cfg.odom_frame
+        t.transform.translation.x, t.transform.translation.y = float(x), float(y)
+        t.transform.rotation = convert.quaternion_from_yaw(float(yaw))
+        try:
+            self.tf_out.sendTransform(t)
+        except rospy.ROSException:
+            pass  # shutting down
+
+    def on_get_map(self, _req) -> GetMapResponse:
+        with self.lock:
+            msg, _ = convert.grid_msgs(self.slam.grid, self.slam.best, self.cfg.map_frame, rospy.Time.now())
+        return GetMapResponse(map=msg)
+
+    def save(self) -> tuple[bool, str]:
+        path = os.path.expanduser(self.cfg.map_file)
+        with self.lock:
+            grid, best = self.slam.grid, self.slam.best
+            occ = grid.occupancy(best)
+            origin = (float(grid.origin[0]), float(grid.origin[1]), 0.0)
+        try:
+            written = save_map(path, occ, grid.resolution, origin)
+        except MapSaveError as err:
+            rospy.logerr(f"could not save the map: {err}")
+            return False, str(err)
+        rospy.loginfo(f"map saved: {written}")
+        return True, str(written)
+
+    def on_save_map(self, _req) -> TriggerResponse:
+        ok, message = self.save()
+        return TriggerResponse(success=ok, message=message)
+
+    def on_shutdown(self) -> None:
+        if self.cfg.save_on_exit and self.updates > 0:
+            self.save()

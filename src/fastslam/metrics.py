@@ -1,0 +1,87 @@
+"""Quality of a SLAM result against ground truth: trajectory error and map agreement."""
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .geometry import wrap_angle
+
+OCCUPIED = 65  # map_saver's occupied threshold, in OccupancyGrid percent
+
+
+def interpolate_poses(times: NDArray[np.float64], poses: NDArray[np.float64],
+                      at: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(len(at), 3) poses linearly interpolated at the given times (heading unwrapped first)."""
+    order = np.argsort(times)
+    times, poses = times[order], poses[order]
+    out = np.empty((len(at), 3))
+    out[:, 0] = np.interp(at, times, poses[:, 0])
+    out[:, 1] = np.interp(at, times, poses[:, 1])
+    out[:, 2] = wrap_angle(np.interp(at, times, np.unwrap(poses[:, 2])))
+    return out
+
+
+def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(T,) position error of each estimated row (t, x, y, theta) against truth rows
+    (t, x, y, theta) interpolated at that time, both in the same frame (no alignment)."""
+    inside = (estimate[:, 0] >= truth[:, 0].min()) & (estimate[:, 0] <= truth[:, 0].max())
+    est = estimate[inside]
+    ref = interpolate_poses(truth[:, 0], truth[:, 1:], est[:, 0])
+    return np.hypot(est[:, 1] - ref[:, 0], est[:, 2] - ref[:, 1])
+
+
+def _nearest_distance(points: NDArray[np.float64], targets: NDArray[np.float64],
+                      chunk: int = 2048) -> NDArray[np.float64]:
+    """(P,) distance from each point (P, 2) to the nearest target (Q, 2)."""
+    if len(targets) == 0:
+        return np.full(len(points), np.inf)
+    out = np.empty(len(points))
+    for a in range(0, len(points), chunk):
+        d = points[a:a + chunk, None, :] - targets[None, :, :]
+        out[a:a + chunk] = np.sqrt(np.min(np.einsum("pqk,pqk->pq", d, d), axis=1))
+    return out
+
+
+def map_quality(occupancy: NDArray[np.int8], resolution: float, origin: tuple[float, float],
+                boundary: NDArray[np.float64]) -> dict[str, float]:
+    """Agreement of an occupancy grid with the true obstacle boundary.
+
+    Args:
+        occupancy: (H, W) OccupancyGrid values (-1 unknown, 0..100).
+        origin: (x, y) of the grid's cell (0, 0) corner, same frame as boundary [m].
+        boundary: (P, 2) points densely sampled on the true obstacle boundaries [m].
+    Returns:
+        boundary_recall: of the true boundary cells the map observed (a known cell
+            within one cell), the fraction within one cell of an occupied map cell;
+        observed_fraction: the fraction of true boundary cells observed at all;
+        spurious_fraction: the fraction of occupied map cells farther than two cells
+            from any true boundary point;
+        occupied_cells: how many cells the map calls occupied.
+    """
+    h, w = occupancy.shape
+    cells = np.floor((boundary - np.asarray(origin)) / resolution).astype(np.int64)
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < w) & (cells[:, 1] >= 0) & (cells[:, 1] < h)
+    truth = np.unique(cells[inside], axis=0)                            # (B, 2) ix, iy
+    occupied = occupancy >= OCCUPIED
+    known = occupancy >= 0
+
+    def near(mask: NDArray[np.bool_], radius: int) -> NDArray[np.bool_]:
+        """mask dilated by a square of the given radius in cells."""
+        padded = np.pad(mask, radius)
+        out = np.zeros_like(mask)
+        for dy in range(2 * radius + 1):
+            for dx in range(2 * radius + 1):
+                out |= padded[dy:dy + h, dx:dx + w]
+        return out
+
+    observed = near(known, 1)[truth[:, 1], truth[:, 0]]
+    hit = near(occupied, 1)[truth[:, 1], truth[:, 0]]
+    occ_cells = np.argwhere(occupied)[:, ::-1]                          # (O, 2) ix, iy
+    centres = np.asarray(origin) + (occ_cells + 0.5) * resolution
+    far = _nearest_distance(centres, boundary) > 2 * resolution + resolution / 2
+    return {
+        "boundary_recall": float(hit[observed].mean()) if observed.any() else 0.0,
+        "observed_fraction": float(observed.mean()) if len(truth) else 0.0,
+        "spurious_fraction": float(far.mean()) if len(far) else 0.0,
+        "occupied_cells": int(occupied.sum()),
+    }

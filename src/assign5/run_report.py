@@ -1,0 +1,154 @@
+"""Watches a simulator run and writes its result: map files, picture, metrics.
+
+Used by `make demo` (launch/demo.launch) and by the end-to-end rostest. It records the
+ground truth, waits for the simulator's `route_done`, lets the SLAM node publish its
+final map and trajectory, then evaluates them against the world.
+"""
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+from pathlib import Path as FilePath
+
+import numpy as np
+import rospy
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from nav_msgs.srv import GetMap
+from std_msgs.msg import Bool, Float64
+
+from fastslam.geometry import relative, yaw_from_quaternion
+from fastslam.io.mapfile import save_map
+from fastslam.io.png import render_map, write_png
+from fastslam.metrics import map_quality, trajectory_errors
+from fastslam.sim.world import load_world
+
+
+class RunRecorder:
+    """Collects ground truth, the SLAM outputs and timing while a run goes on."""
+
+    def __init__(self, slam_ns: str = "slam") -> None:
+        self.lock = threading.Lock()
+        self.truth: list[tuple[float, float, float, float]] = []
+        self.update_ms: list[float] = []
+        self.path: Path | None = None
+        self.map: OccupancyGrid | None = None
+        self.done = threading.Event()
+        self.slam_ns = slam_ns
+        rospy.Subscriber("ground_truth", Odometry, self._on_truth, queue_size=100)
+        rospy.Subscriber(f"{slam_ns}/update_time", Float64, self._on_time, queue_size=100)
+        rospy.Subscriber(f"{slam_ns}/trajectory", Path, self._on_path, queue_size=1)
+        rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
+        rospy.Subscriber("route_done", Bool, self._on_done, queue_size=1)
+
+    def _on_truth(self, msg: Odometry) -> None:
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        with self.lock:
+            self.truth.append((msg.header.stamp.to_sec(), p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
+
+    def _on_time(self, msg: Float64) -> None:
+        with self.lock:
+            self.update_ms.append(msg.data)
+
+    def _on_path(self, msg: Path) -> None:
+        with self.lock:
+            self.path = msg
+
+    def _on_map(self, msg: OccupancyGrid) -> None:
+        with self.lock:
+            self.map = msg
+
+    def _on_done(self, msg: Bool) -> None:
+        if msg.data:
+            self.done.set()
+
+    def progress(self) -> str:
+        with self.lock:
+            truth = np.array(self.truth) if self.truth else np.zeros((0, 4))
+            n, ms = len(self.update_ms), (np.mean(self.update_ms) if self.update_ms else 0.0)
+        dist = float(np.sum(np.hypot(*np.diff(truth[:, 1:3], axis=0).T))) if len(truth) > 1 else 0.0
+        sim_t = truth[-1, 0] - truth[0, 0] if len(truth) else 0.0
+        return f"sim {sim_t:6.1f} s  driven {dist:5.1f} m  updates {n:5d}  {ms:5.1f} ms/update"
+
+    def final_outputs(self, settle: float) -> tuple[np.ndarray, OccupancyGrid]:
+        """The best particle's trajectory (T, 4) and map, after the node's next publication."""
+        with self.lock:
+            self.path = None
+        deadline = time.monotonic() + settle
+        while time.monotonic() < deadline and not rospy.is_shutdown():
+            with self.lock:
+                if self.path is not None:
+                    break
+            time.sleep(0.05)
+        rospy.wait_for_service("dynamic_map", timeout=10.0)
+        grid = rospy.ServiceProxy("dynamic_map", GetMap)().map
+        with self.lock:
+            path = self.path
+        if path is None:
+            raise RuntimeError("no trajectory published on ~trajectory")
+        traj = np.array([(p.header.stamp.to_sec(), p.pose.position.x, p.pose.position.y,
+                          yaw_from_quaternion(p.pose.orientation.x, p.pose.orientation.y,
+                                              p.pose.orientation.z, p.pose.orientation.w))
+                         for p in path.poses])
+        return traj, grid
+
+
+def evaluate(world_file: str, truth_world: np.ndarray, traj: np.ndarray, grid: OccupancyGrid,
+             update_ms: list[float]) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Metrics of a run. The map frame is the odometry frame, whose origin is the
+    robot's first true pose, so the truth is expressed relative to that pose."""
+    spawn = truth_world[0, 1:]
+    truth = np.c_[truth_world[:, 0], relative(spawn, truth_world[:, 1:])]
+    occ = np.asarray(grid.data, dtype=np.int8).reshape(grid.info.height, grid.info.width)
+    origin = (grid.info.origin.position.x, grid.info.origin.position.y)
+    world = load_world(world_file)
+    boundary_w = world.sample_boundary(grid.info.resolution / 4)
+    boundary = relative(spawn, np.c_[boundary_w, np.zeros(len(boundary_w))])[:, :2]
+    err = trajectory_errors(traj, truth)
+    metrics = {
+        "trajectory_rms_m": float(np.sqrt(np.mean(err ** 2))),
+        "trajectory_max_m": float(err.max()),
+        "final_error_m": float(err[-1]),
+        "processed_scans": int(len(traj)),
+        "ms_per_update_median": float(np.median(update_ms)) if update_ms else None,
+        "ms_per_update_p95": float(np.percentile(update_ms, 95)) if update_ms else None,
+        **map_quality(occ, grid.info.resolution, origin, boundary),
+    }
+    return metrics, occ, truth
+
+
+def write_outputs(out: FilePath, metrics: dict, occ: np.ndarray, grid: OccupancyGrid,
+                  truth: np.ndarray, traj: np.ndarray) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    origin = (grid.info.origin.position.x, grid.info.origin.position.y, 0.0)
+    save_map(str(out / "map"), occ, grid.info.resolution, origin)
+    rgb = render_map(occ, grid.info.resolution, origin[:2],
+                     {"truth": (truth[:, 1:3], (0, 160, 0)), "estimate": (traj[:, 1:3], (220, 0, 0))}, scale=3)
+    write_png(str(out / "map.png"), rgb)
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+
+
+def main() -> None:
+    rospy.init_node("run_report")
+    out = FilePath(os.path.expanduser(rospy.get_param("~out", "out/demo"))).absolute()
+    world_file = rospy.get_param("~world_file")
+    settle = float(rospy.get_param("~settle", 10.0))
+    rec = RunRecorder()
+    last = 0.0
+    while not rec.done.wait(0.2):
+        if rospy.is_shutdown():
+            return
+        if time.monotonic() - last > 5.0:
+            last = time.monotonic()
+            print(rec.progress(), flush=True)
+    print(rec.progress(), "- route done", flush=True)
+    traj, grid = rec.final_outputs(settle)
+    with rec.lock:
+        truth_w, ms = np.array(rec.truth), list(rec.update_ms)
+    metrics, occ, truth = evaluate(world_file, truth_w, traj, grid, ms)
+    write_outputs(out, metrics, occ, grid, truth, traj)
+    print(f"\nresults in {out}/: map.pgm map.yaml map.png metrics.json")
+    for k, v in metrics.items():
+        print(f"  {k:24s} {v:.3f}" if isinstance(v, float) else f"  {k:24s} {v}")
+    rospy.signal_shutdown("run finished")

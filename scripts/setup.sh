@@ -41,8 +41,15 @@ if ! cmp -s scripts/requirements-dev.txt .venv/.requirements 2>/dev/null; then
   cp scripts/requirements-dev.txt .venv/.requirements
 fi
 
-mkdir -p .ws/src
-[ -L .ws/src/assign5 ] || ln -sfn "$here" .ws/src/assign5
+# The workspace holds the package as links to its top-level entries: linking the whole
+# repository would put .ws inside itself and send rospack and rosrun round a loop.
+[ -L .ws/src/assign5 ] && rm .ws/src/assign5
+mkdir -p .ws/src/assign5
+for f in * .ci; do
+  case "$f" in out|results|build|devel) continue ;; esac
+  [ -e ".ws/src/assign5/$f" ] || ln -sfn "$here/$f" ".ws/src/assign5/$f"
+done
+for l in .ws/src/assign5/* .ws/src/assign5/.ci; do [ -e "$l" ] || rm -f "$l"; done
 stamp=.ws/.built
 if [ ! -f "$stamp" ] || [ -n "$(find CMakeLists.txt package.xml setup.py src -maxdepth 1 -newer "$stamp" -print -quit)" ]; then
   echo "setup: catkin_make in .ws/"

@@ -228,12 +228,12 @@ class SlamNode:
             occ = grid.occupancy(best)
             origin = (float(grid.origin[0]), float(grid.origin[1]), 0.0)
         try:
-            written = save_map(path, occ, grid.resolution, origin)
+            _, yaml_path = save_map(path, occ, grid.resolution, origin)
         except MapSaveError as err:
             rospy.logerr(f"could not save the map: {err}")
             return False, str(err)
-        rospy.loginfo(f"map saved: {written}")
-        return True, str(written)
+        rospy.loginfo(f"map saved: {yaml_path}")
+        return True, str(yaml_path)
 
     def on_save_map(self, _req) -> TriggerResponse:
         ok, message = self.save()

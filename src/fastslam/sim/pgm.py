@@ -1,0 +1,116 @@
+"""A world from a map_server map (YAML + binary P5 PGM): occupied pixels become walls.
+
+Only the edges between an occupied pixel and a non-occupied one are kept, merged into
+runs along rows and columns, so a 384 x 384 map gives hundreds of segments, not
+four per pixel.
+"""
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fastslam.sim.world import World, WorldError
+
+_TOKEN = re.compile(rb"(#[^\n]*\n|\s+)")
+
+
+def read_pgm(path: str | Path) -> tuple[NDArray[np.uint16], int]:
+    """Binary P5 PGM -> ((H, W) pixel values, row 0 = top row of the image; maxval)."""
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as err:
+        raise WorldError(f"image: cannot read {path}: {err.strerror}") from None
+    if raw[:2] != b"P5":
+        raise WorldError(f"image: {path} is not a binary (P5) PGM")
+    fields, pos = [], 2
+    while len(fields) < 3:            # width, height, maxval, separated by blanks and comments
+        m = _TOKEN.match(raw, pos)
+        if m:
+            pos = m.end()
+            continue
+        end = pos
+        while end < len(raw) and raw[end:end + 1].isdigit():
+            end += 1
+        if end == pos:
+            raise WorldError(f"image: {path}: malformed PGM header")
+        fields.append(int(raw[pos:end]))
+        pos = end
+    w, h, maxval = fields
+    pos += 1                           # exactly one whitespace byte before the pixels
+    dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
+    need = w * h * dtype.itemsize
+    if len(raw) - pos < need:
+        raise WorldError(f"image: {path}: {len(raw) - pos} bytes of pixels, expected {need}")
+    pixels = np.frombuffer(raw, dtype=dtype, count=w * h, offset=pos).reshape(h, w).astype(np.uint16)
+    return pixels, maxval
+
+
+def occupied_mask(pixels: NDArray[Any], *, negate: bool, occupied_thresh: float, maxval: int = 255) -> NDArray[np.bool_]:
+    """map_server's trinary rule: p = (maxval - v) / maxval (negate flips), occupied if p > thresh."""
+    p = pixels.astype(float) / maxval if negate else (maxval - pixels.astype(float)) / maxval
+    return p > occupied_thresh
+
+
+def mask_segments(occ: NDArray[np.bool_], resolution: float, origin: tuple[float, float, float]) -> NDArray[np.float64]:
+    """(K, 2, 2) boundary segments of the occupied cells of ``occ`` (H, W), row 0 = top."""
+    h, w = occ.shape
+    grid = np.pad(occ[::-1], 1)                       # row 0 = bottom (y up), a free border
+    segs: list[tuple[float, float, float, float]] = []
+    # horizontal edges at grid line j (between rows j-1 and j of the unpadded grid)
+    hedge = grid[1:, 1:-1] != grid[:-1, 1:-1]         # (H+1, W)
+    for j in np.flatnonzero(hedge.any(axis=1)):
+        runs = np.diff(np.concatenate([[0], hedge[j].astype(np.int8), [0]]))
+        for s, e in zip(np.flatnonzero(runs == 1), np.flatnonzero(runs == -1)):
+            segs.append((s, j, e, j))
+    vedge = grid[1:-1, 1:] != grid[1:-1, :-1]         # (H, W+1)
+    for i in np.flatnonzero(vedge.any(axis=0)):
+        runs = np.diff(np.concatenate([[0], vedge[:, i].astype(np.int8), [0]]))
+        for s, e in zip(np.flatnonzero(runs == 1), np.flatnonzero(runs == -1)):
+            segs.append((i, s, i, e))
+    cells = np.asarray(segs, dtype=float).reshape(-1, 2, 2) * resolution
+    c, s = math.cos(origin[2]), math.sin(origin[2])
+    x = origin[0] + c * cells[..., 0] - s * cells[..., 1]
+    y = origin[1] + s * cells[..., 0] + c * cells[..., 1]
+    return np.stack([x, y], axis=-1)
+
+
+def world_from_map_yaml(data: dict[str, Any], path: Path) -> World:
+    """map_server YAML fields (image, resolution, origin, negate, occupied_thresh) -> World.
+
+    An optional non-standard ``spawn: [x, y, yaw_deg]`` sets the start pose (default 0, 0, 0).
+    """
+    def num(key: str, default: Any = None) -> float:
+        v = data.get(key, default)
+        if v is None:
+            raise WorldError(f"{path.name}: {key}: missing")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise WorldError(f"{path.name}: {key}: expected a number, got {v!r}")
+        return float(v)
+
+    res = num("resolution")
+    if res <= 0:
+        raise WorldError(f"{path.name}: resolution={res} must be > 0")
+    origin = data.get("origin", [0.0, 0.0, 0.0])
+    if not isinstance(origin, list) or len(origin) != 3 or not all(isinstance(v, (int, float)) for v in origin):
+        raise WorldError(f"{path.name}: origin: expected [x, y, yaw], got {origin!r}")
+    thresh = num("occupied_thresh", 0.65)
+    if not 0.0 < thresh < 1.0:
+        raise WorldError(f"{path.name}: occupied_thresh={thresh} must be in (0, 1)")
+    image = Path(str(data["image"]))
+    if not image.is_absolute():
+        image = path.parent / image
+    pixels, maxval = read_pgm(image)
+    occ = occupied_mask(pixels, negate=bool(data.get("negate", 0)), occupied_thresh=thresh, maxval=maxval)
+    if not occ.any():
+        raise WorldError(f"{path.name}: image {image.name} has no occupied pixel")
+    spawn = data.get("spawn", [0.0, 0.0, 0.0])
+    if not isinstance(spawn, list) or len(spawn) != 3:
+        raise WorldError(f"{path.name}: spawn: expected [x, y, yaw_deg], got {spawn!r}")
+    return World(segments=mask_segments(occ, res, (float(origin[0]), float(origin[1]), float(origin[2]))),
+                  spawn=np.array([float(spawn[0]), float(spawn[1]), math.radians(float(spawn[2]))]),
+                  name=path.stem)

@@ -40,11 +40,11 @@ if [ "$what" = all ] || [ "$what" = rostest ]; then
     echo "=== rostest $name"
     timeout 900 rostest --text assign5 "$name.test" > "$outdir/$name.log" 2>&1
     rc=$?
-    n=$(sed -n 's/^ \* TESTS: \([0-9]*\).*/\1/p' "$outdir/$name.log" | tail -1)
+    n=$(sed -n 's/^.* \* TESTS: \([0-9]*\).*/\1/p' "$outdir/$name.log" | tail -1)
     e=$(sed -n 's/^ \* ERRORS: \([0-9]*\).*/\1/p' "$outdir/$name.log" | tail -1)
     fl=$(sed -n 's/^ \* FAILURES: \([0-9]*\).*/\1/p' "$outdir/$name.log" | tail -1)
     n=${n:-0}; e=${e:-0}; fl=${fl:-0}
-    grep -q '^ \* RESULT: SUCCESS' "$outdir/$name.log" || rc=${rc/#0/1}
+    grep -q 'RESULT: SUCCESS' "$outdir/$name.log" || rc=${rc/#0/1}
     if [ $rc -ne 0 ] || [ "$n" = 0 ]; then
       echo "FAILED rostest $name (exit $rc), last lines of $outdir/$name.log:"; tail -40 "$outdir/$name.log"
       failed=$((failed + (e + fl > 0 ? e + fl : 1))); passed=$((passed + (n - e - fl > 0 ? n - e - fl : 0)))

@@ -7,7 +7,7 @@ here="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$here"
 export PATH="$here/.venv/bin:/usr/bin:/bin:$PATH"
 what="${1:-all}"; shift || true
-outdir="$here/out/test-results"; rm -rf "$outdir"; mkdir -p "$outdir"
+outdir="${TEST_OUT:-$here/out/test-results}"; rm -rf "$outdir"; mkdir -p "$outdir"
 passed=0; failed=0
 
 if [ "$what" = all ] || [ "$what" = pytest ]; then

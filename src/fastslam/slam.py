@@ -165,7 +165,7 @@ class FastSlam:
         if weigh and cfg.weight_model == "likelihood":
             from .scanmatch import endpoint_distances
 
-            dist = endpoint_distances(self.grid, self.poses, beams)
+            dist = endpoint_distances(self.grid, self.poses, beams, max_dist=cfg.likelihood_max_dist)
             log_w = likelihood_log_weights(dist, beams.hit, cfg.likelihood_sigma,
                                            cfg.likelihood_max_dist, cfg.likelihood_gain)
         origins, angles = self._beam_frames(beams)

@@ -1,0 +1,278 @@
+"""Scan-matching proposal and beam end-point distances (the improved mode, gmapping-like).
+
+Every particle matches the scan against its own map, all particles at once:
+
+1. a correlative search over a grid of candidate poses around the predicted pose, on
+   the map max-pooled to 4x4 cells (0.2 m at 0.05 m), so that a wall within a coarse
+   cell of an end point counts and a wide window (translation and heading) is cheap;
+2. the same search, narrower, on the map pooled to 2x2 cells and then on the map
+   itself, each level around the previous level's best pose;
+3. hill climbing with halving steps (gmapping's optimiser) on the bilinearly
+   interpolated occupied evidence, for a pose finer than a cell.
+
+A candidate's score is the sum over end points of the occupied evidence max(l, 0) of
+the cell each end point falls in (log-odds in grid units). Translations of a level
+are whole cells of that level, so a candidate's cells are the cells of its heading
+plus a constant flat offset: one gather per end point and candidate, no trigonometry
+per candidate. The pooled maps are built once per update, only in the window the
+scans of all particles can reach.
+
+A match is trusted when enough of the matched end points lie on occupied cells
+(`match_min_score`) of a map that knows enough cells near the robot
+(`match_min_known`); the particle is then drawn around the matched pose with a
+spread taken from how sharply the score falls off around it (never below
+`match_sigma_xy` / `match_sigma_theta`). Untrusted particles keep their odometry
+sample.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .geometry import wrap_angle
+from .grid import GridMaps
+from .scan import Beams
+
+if TYPE_CHECKING:
+    from .slam import FastSlam
+
+POOL = 4               # coarse level: cells per side of a pooled cell
+FINE_ITERATIONS = 6    # hill-climbing steps (a step halves when no neighbour improves)
+MIN_BEAMS = 10         # fewer returns than this: nothing to match
+
+
+def _end_points(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
+    """(M, 2) end points of the selected beams in the robot frame [m]."""
+    r = beams.ranges[sel]
+    a = beams.angles[sel]
+    return np.stack([beams.mount[0] + r * np.cos(a), beams.mount[1] + r * np.sin(a)], axis=1)
+
+
+def _world(poses: NDArray[np.float64], local: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+    """End points of local (M, 2) seen from poses (..., 3): x, y each (..., M)."""
+    c, s = np.cos(poses[..., 2, None]), np.sin(poses[..., 2, None])
+    x = poses[..., 0, None] + c * local[:, 0] - s * local[:, 1]
+    y = poses[..., 1, None] + s * local[:, 0] + c * local[:, 1]
+    return x, y
+
+
+def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
+                 poses: NDArray[np.float64], turns: NDArray[np.float64], local: NDArray[np.float64],
+                 k: int) -> NDArray[np.int64]:
+    """Scores (N, A, (2k+1)^2) of poses turned by turns (A,) and shifted by -k..k cells.
+
+    level: (N, Hv, Wv) non-negative occupied evidence with cells of size `cell` and
+    lower-left corner `origin`. Candidate t = (dy + k) * (2k + 1) + (dx + k).
+    """
+    n, hv, wv = level.shape
+    cand = np.repeat(poses[:, None, :], len(turns), axis=1)
+    cand[..., 2] += turns
+    x, y = _world(cand, local)                                            # (N, A, M)
+    # Cells near the edge are clamped so every shifted cell stays inside: end points
+    # there are at most k cells off, in a part of the window nothing was seen in.
+    cx = np.clip(np.floor((x - origin[0]) / cell).astype(np.int64), k, wv - 1 - k)
+    cy = np.clip(np.floor((y - origin[1]) / cell).astype(np.int64), k, hv - 1 - k)
+    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx
+    d = np.arange(-k, k + 1)
+    shifts = (d[:, None] * wv + d[None, :]).reshape(-1)                   # (T,)
+    vals = level.reshape(-1).take(flat[..., None] + shifts)              # (N, A, M, T) int8
+    return vals.sum(axis=2, dtype=np.int64)
+
+
+def _pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[np.float64],
+          k: int, cell: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Best candidate of each particle as a pose (N, 3), and the scores as floats.
+
+    Ties go to the candidate nearest the start (the odometry prior), by a penalty far
+    smaller than one unit of score.
+    """
+    n, a, t = scores.shape
+    d = np.arange(-k, k + 1)
+    dist = (np.abs(d)[:, None] + np.abs(d)[None, :]).reshape(-1)
+    prior = 1e-3 * (np.abs(np.arange(a) - a // 2)[:, None] + dist[None, :])
+    s = scores - prior
+    best = s.reshape(n, -1).argmax(axis=1)
+    ia, it = np.divmod(best, t)
+    iy, ix = np.divmod(it, 2 * k + 1)
+    out = poses.copy()
+    out[:, 0] += d[ix] * cell
+    out[:, 1] += d[iy] * cell
+    out[:, 2] += turns[ia]
+    return out, s
+
+
+def _bilinear_scores(field: NDArray[np.float32], origin: NDArray[np.float64], cell: float,
+                     cand: NDArray[np.float64], local: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N, C) sum over end points of the bilinearly interpolated field (N, H, W)."""
+    n, h, w = field.shape
+    x, y = _world(cand, local)                                            # (N, C, M)
+    u = (x - origin[0]) / cell - 0.5
+    v = (y - origin[1]) / cell - 0.5
+    i0 = np.clip(np.floor(u), 0, w - 2)
+    j0 = np.clip(np.floor(v), 0, h - 2)
+    fu = np.clip(u - i0, 0.0, 1.0)
+    fv = np.clip(v - j0, 0.0, 1.0)
+    flat = ((np.arange(n)[:, None, None] * h + j0.astype(np.int64)) * w + i0.astype(np.int64))
+    f = field.reshape(-1)
+    a, b = f.take(flat), f.take(flat + 1)
+    c, d = f.take(flat + w), f.take(flat + w + 1)
+    val = (a * (1 - fu) + b * fu) * (1 - fv) + (c * (1 - fu) + d * fu) * fv
+    return val.sum(axis=2)
+
+
+def _pool(level: NDArray[np.int8]) -> NDArray[np.int8]:
+    """(N, H, W) -> (N, H/2, W/2) maximum over 2x2 cells (H, W even)."""
+    n, h, w = level.shape
+    return level.reshape(n, h // 2, 2, w // 2, 2).max(axis=(2, 4))
+
+
+def _window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:
+    """Cell bounds (x0, y0, x1, y1) of the part of the grid within reach of any pose,
+    with sides a multiple of POOL cells."""
+    h, w = grid.shape
+    lo = grid.world_to_cell(poses[:, :2].min(axis=0) - reach)
+    hi = grid.world_to_cell(poses[:, :2].max(axis=0) + reach) + 1
+    x0, y0 = (int(v) for v in np.maximum(lo, 0))
+    x1 = min(w, x0 + POOL * math.ceil((int(hi[0]) - x0) / POOL))
+    y1 = min(h, y0 + POOL * math.ceil((int(hi[1]) - y0) / POOL))
+    x1 = x0 + POOL * ((x1 - x0) // POOL)
+    y1 = y0 + POOL * ((y1 - y0) // POOL)
+    return x0, y0, x1, y1
+
+
+def refine_poses(slam: FastSlam, beams: Beams) -> NDArray[np.bool_]:
+    """Moves each particle whose scan match is trusted to a sample around its matched
+    pose, in place in slam.poses (N, 3); returns which particles (N,) bool."""
+    cfg = slam.cfg
+    grid = slam.grid
+    n = len(slam.poses)
+    trusted = np.zeros(n, dtype=bool)
+    sel = np.flatnonzero(beams.hit)
+    if len(sel) < MIN_BEAMS:
+        return trusted
+    sel = sel[np.unique(np.linspace(0, len(sel) - 1, min(len(sel), cfg.match_beams)).astype(np.intp))]
+    local = _end_points(beams, sel)
+    res = grid.resolution
+    coarse = POOL * res
+    k0 = max(1, math.ceil(cfg.match_xy_range / coarse))
+    far = float(np.percentile(np.hypot(local[:, 0], local[:, 1]), 90))
+    dth = min(coarse / max(far, coarse), 0.1)                      # turn moving far points one pooled cell
+    ka = math.ceil(cfg.match_theta_range / dth)
+    reach = float(np.hypot(local[:, 0], local[:, 1]).max()) + cfg.match_xy_range + 2 * coarse
+    x0, y0, x1, y1 = _window(grid, slam.poses, reach)
+    if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
+        return trusted
+    raw = grid.logodds[:, y0:y1, x0:x1]
+    known = np.count_nonzero(raw, axis=(1, 2))                     # (N,) cells seen near the robot
+    evidence = np.maximum(raw, 0)                                  # (N, h, w) int8, a copy
+    half = _pool(evidence)
+    quarter = _pool(half)
+    w_origin = grid.origin + np.array([x0, y0]) * res
+    # 1. coarse: wide window on 4x4 cells
+    turns = np.arange(-ka, ka + 1) * dth
+    pose, _ = _pick(_grid_search(quarter, w_origin, coarse, slam.poses, turns, local, k0),
+                    slam.poses, turns, k0, coarse)
+    # 2. the best coarse cell again on 2x2 cells, then on the map's own cells
+    turns = np.array([-0.5, 0.0, 0.5]) * dth
+    pose, _ = _pick(_grid_search(half, w_origin, 2 * res, pose, turns, local, 2), pose, turns, 2, 2 * res)
+    turns = np.array([-0.25, 0.0, 0.25]) * dth
+    scores = _grid_search(evidence, w_origin, res, pose, turns, local, 1)
+    pose, s = _pick(scores, pose, turns, 1, res)
+    # 3. hill climbing on the interpolated evidence, steps halving when stuck
+    field = evidence.astype(np.float32) * (1.0 / 127.0)
+    best = _bilinear_scores(field, w_origin, res, pose[:, None, :], local)[:, 0]
+    step = np.tile([res / 2, res / 2, dth / 8], (n, 1))
+    moves = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    for _ in range(FINE_ITERATIONS):
+        cand = pose[:, None, :] + moves[None] * step[:, None, :]
+        sc = _bilinear_scores(field, w_origin, res, cand, local)
+        j = sc.argmax(axis=1)
+        top = sc[np.arange(n), j]
+        up = top > best
+        pose[up] = cand[up, j[up]]
+        best = np.where(up, top, best)
+        step[~up] *= 0.5
+    # trust: share of end points on an occupied 2x2 cell at the matched pose
+    x, y = _world(pose, local)
+    cx = np.clip(((x - w_origin[0]) / (2 * res)).astype(np.int64), 0, half.shape[2] - 1)
+    cy = np.clip(((y - w_origin[1]) / (2 * res)).astype(np.int64), 0, half.shape[1] - 1)
+    on_map = (half[np.arange(n)[:, None], cy, cx] > 0).mean(axis=1)
+    trusted = (on_map >= cfg.match_min_score) & (known >= cfg.match_min_known)
+    if not trusted.any():
+        return trusted
+    sigma = _spread(s, 1, res, dth / 4, cfg.match_sigma_xy, cfg.match_sigma_theta)
+    sample = pose + slam.rng.normal(0.0, 1.0, (n, 3)) * sigma
+    sample[:, 2] = wrap_angle(sample[:, 2])
+    slam.poses[trusted] = sample[trusted]
+    return trusted
+
+
+def _spread(scores: NDArray[np.float64], k: int, cell: float, turn: float,
+            floor_xy: float, floor_theta: float) -> NDArray[np.float64]:
+    """(N, 3) std-devs of the pose from the scores (N, 3, (2k+1)^2) of the finest grid.
+
+    Scores are sums of evidence; one fully occupied end point (127) counts as one nat
+    of log-likelihood. The spread is the weighted std-dev of the candidate offsets
+    under exp(score), floored at the configured minimum.
+    """
+    n, a, t = scores.shape
+    z = scores / 127.0
+    p = np.exp(z - z.max(axis=(1, 2), keepdims=True))
+    p /= p.sum(axis=(1, 2), keepdims=True)
+    d = np.arange(-k, k + 1)
+    dx = np.tile(d, 2 * k + 1) * cell
+    dy = np.repeat(d, 2 * k + 1) * cell
+    da = (np.arange(a) - a // 2) * turn
+    pxy = p.sum(axis=1)                                                   # (N, T)
+    pa = p.sum(axis=2)                                                    # (N, A)
+
+    def std(prob: NDArray, off: NDArray) -> NDArray:
+        m = prob @ off
+        return np.sqrt(np.maximum(prob @ (off * off) - m * m, 0.0))
+
+    sx = std(pxy, dx)
+    sy = std(pxy, dy)
+    sa = std(pa, da)
+    return np.stack([np.maximum(sx, floor_xy), np.maximum(sy, floor_xy), np.maximum(sa, floor_theta)], axis=1)
+
+
+def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, *,
+                       max_dist: float = 0.3) -> NDArray[np.float64]:
+    """(N, M) distance from each beam's end point to the nearest occupied cell centre
+    of each particle's map, searched up to max_dist and capped there [m].
+
+    Beams without a return (not beams.hit) have no end point: they get max_dist and
+    are left out of the weight by its valid mask.
+    """
+    n = len(poses)
+    m = len(beams.ranges)
+    out = np.full((n, m), float(max_dist))
+    sel = np.flatnonzero(beams.hit)
+    if len(sel) == 0:
+        return out
+    res = grid.resolution
+    h, w = grid.shape
+    r = max(1, math.ceil(max_dist / res))
+    d = np.arange(-r, r + 1)
+    ox, oy = np.meshgrid(d, d)
+    near = np.hypot(np.abs(ox) - 0.5, np.abs(oy) - 0.5) <= r   # cells that can be within reach
+    ox, oy = ox[near], oy[near]                                 # (O,)
+    x, y = _world(poses, _end_points(beams, sel))               # (N, S)
+    u = (x - grid.origin[0]) / res
+    v = (y - grid.origin[1]) / res
+    ix = np.floor(u).astype(np.int64)
+    iy = np.floor(v).astype(np.int64)
+    fx = (u - ix - 0.5).astype(np.float32)
+    fy = (v - iy - 0.5).astype(np.float32)
+    cx = ix[..., None] + ox                                     # (N, S, O)
+    cy = iy[..., None] + oy
+    inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
+    flat = (np.arange(n)[:, None, None] * h + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
+    occupied = (grid.logodds.reshape(-1).take(flat) > 0) & inside
+    d2 = (ox - fx[..., None]) ** 2 + (oy - fy[..., None]) ** 2
+    nearest = np.sqrt(np.where(occupied, d2, np.inf).min(axis=2)) * res
+    out[:, sel] = np.minimum(nearest, max_dist)
+    return out

@@ -1,0 +1,54 @@
+"""Score an estimated 2D trajectory against a reference (ATE and RPE).
+
+    python -m fastslam.evaluate REFERENCE ESTIMATE [--max-dt 0.05] [--interpolate] [--delta 1] [--json]
+
+Both files hold ``t x y theta`` lines (``#`` comments allowed), e.g. ``out.bag.gt.txt``
+from ``python -m fastslam.carmen`` and a SLAM run's trajectory. See
+:mod:`fastslam.trajectory_metrics` for the definitions.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from fastslam.io.trajectory import TrajectoryError, read_trajectory
+from fastslam.trajectory_metrics import TrajectoryScores, score
+
+
+def format_table(s: TrajectoryScores) -> str:
+    """Human-readable summary, one metric per line."""
+    rows = [("matched poses", f"{s.matched}"),
+            ("ATE rmse [m]", f"{s.ate_rmse:.4f}"), ("ATE mean [m]", f"{s.ate_mean:.4f}"),
+            ("ATE max [m]", f"{s.ate_max:.4f}"),
+            (f"RPE trans rmse [m / {s.rpe_delta} pose]", f"{s.rpe_trans:.4f}"),
+            (f"RPE rot rmse [deg / {s.rpe_delta} pose]", f"{s.rpe_rot:.4f}")]
+    width = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:<{width}}  {v:>10}" for k, v in rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m fastslam.evaluate", description=__doc__.split("\n")[0])
+    ap.add_argument("reference", help="reference trajectory (t x y theta)")
+    ap.add_argument("estimate", help="estimated trajectory (t x y theta)")
+    ap.add_argument("--max-dt", type=float, default=0.05, help="nearest-time matching tolerance [s]")
+    ap.add_argument("--interpolate", action="store_true", help="interpolate the reference instead")
+    ap.add_argument("--delta", type=int, default=1, help="RPE over matched poses this many apart")
+    ap.add_argument("--json", action="store_true", help="print the scores as JSON")
+    args = ap.parse_args(argv)
+    try:
+        ref_t, ref = read_trajectory(args.reference)
+        est_t, est = read_trajectory(args.estimate)
+    except TrajectoryError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    s = score(ref_t, ref, est_t, est, max_dt=args.max_dt, interpolate=args.interpolate, delta=args.delta)
+    if s.matched == 0:
+        print(f"error: no estimate pose within {args.max_dt} s of a reference pose", file=sys.stderr)
+        return 1
+    print(json.dumps(s.as_dict(), indent=2) if args.json else format_table(s))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

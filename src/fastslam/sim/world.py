@@ -211,8 +211,11 @@ def world_from_dict(data: Any, name: str = "world") -> World:
                   spawn=np.array([sp[0], sp[1], math.radians(sp[2])]), name=str(data.get("name", name)))
     if not len(world.segments) and not len(world.circles):
         raise WorldError(f"{name}: the world has no geometry (segments, circles or polygons)")
-    if world.clearance(world.spawn[None, :2])[0] < 1e-3:
-        raise WorldError(f"spawn: {spawn!r} lies on an obstacle")
+    xy = world.spawn[None, :2]
+    inside_solid = any(inside_polygon(xy, p)[0] for p, s in zip(polys, solid) if s) or bool(
+        len(world.circles) and (np.hypot(*(xy[0] - world.circles[:, :2]).T) < world.circles[:, 2]).any())
+    if world.clearance(xy)[0] < 1e-3 or inside_solid:
+        raise WorldError(f"spawn: {spawn!r} lies on or inside an obstacle")
     return world
 
 

@@ -97,12 +97,12 @@ class RunRecorder:
 def evaluate(world_file: str, truth_world: np.ndarray, traj: np.ndarray, grid: OccupancyGrid,
              update_ms: list[float]) -> tuple[dict, np.ndarray, np.ndarray]:
     """Metrics of a run. The map frame is the odometry frame, whose origin is the
-    robot's first true pose, so the truth is expressed relative to that pose."""
-    spawn = truth_world[0, 1:]
+    robot's spawn pose in the world, so the truth is expressed relative to that pose."""
+    world = load_world(world_file)
+    spawn = world.spawn
     truth = np.c_[truth_world[:, 0], relative(spawn, truth_world[:, 1:])]
     occ = np.asarray(grid.data, dtype=np.int8).reshape(grid.info.height, grid.info.width)
     origin = (grid.info.origin.position.x, grid.info.origin.position.y)
-    world = load_world(world_file)
     boundary_w = world.sample_boundary(grid.info.resolution / 4)
     boundary = relative(spawn, np.c_[boundary_w, np.zeros(len(boundary_w))])[:, :2]
     err = trajectory_errors(traj, truth)
@@ -123,7 +123,7 @@ def write_outputs(out: FilePath, metrics: dict, occ: np.ndarray, grid: Occupancy
     out.mkdir(parents=True, exist_ok=True)
     origin = (grid.info.origin.position.x, grid.info.origin.position.y, 0.0)
     save_map(str(out / "map"), occ, grid.info.resolution, origin)
-    rgb = render_map(occ, grid.info.resolution, origin[:2],
+    rgb = render_map(occ, grid.info.resolution, origin,
                      {"truth": (truth[:, 1:3], (0, 160, 0)), "estimate": (traj[:, 1:3], (220, 0, 0))}, scale=3)
     write_png(str(out / "map.png"), rgb)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")

@@ -30,7 +30,7 @@ def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64])
     return np.hypot(est[:, 1] - ref[:, 0], est[:, 2] - ref[:, 1])
 
 
-def _nearest_distance(points: NDArray[np.float64], targets: NDArray[np.float64],
+def nearest_distance(points: NDArray[np.float64], targets: NDArray[np.float64],
                       chunk: int = 2048) -> NDArray[np.float64]:
     """(P,) distance from each point (P, 2) to the nearest target (Q, 2)."""
     if len(targets) == 0:
@@ -78,7 +78,7 @@ def map_quality(occupancy: NDArray[np.int8], resolution: float, origin: tuple[fl
     hit = near(occupied, 1)[truth[:, 1], truth[:, 0]]
     occ_cells = np.argwhere(occupied)[:, ::-1]                          # (O, 2) ix, iy
     centres = np.asarray(origin) + (occ_cells + 0.5) * resolution
-    far = _nearest_distance(centres, boundary) > 2 * resolution + resolution / 2
+    far = nearest_distance(centres, boundary) > 2 * resolution + resolution / 2
     return {
         "boundary_recall": float(hit[observed].mean()) if observed.any() else 0.0,
         "observed_fraction": float(observed.mean()) if len(truth) else 0.0,

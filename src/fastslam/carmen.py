@@ -2,9 +2,10 @@
 
     python -m fastslam.carmen LOG --out BAG [--odom-noise LEVEL --seed N] [--max-range R] [--limit K]
 
-Writes BAG (/scan, /odom, /tf, /tf_static), BAG.gt.txt (the log's poses,
-``t x y theta``) and BAG.odom.txt (the odometry). The odometry re-integrates the logged motion with the noise model
-of :mod:`fastslam.io.odom_noise` scaled by LEVEL (0 = the logged poses).
+Writes BAG (/scan, /odom, /tf, /tf_static), BAG.gt.txt (the log's poses, ``t x y
+theta``) and BAG.odom.txt (the odometry). The odometry re-integrates the logged
+motion with the noise model of :mod:`fastslam.io.odom_noise` scaled by LEVEL
+(0 = the logged poses).
 """
 from __future__ import annotations
 

@@ -54,10 +54,10 @@ class BagWriter:
         self._writer.open()
         scan_topic, odom_topic = self._topics
         add = self._writer.add_connection
-        self._conn["scan"] = add(scan_topic, "sensor_msgs/msg/LaserScan", typestore=self.ts)
-        self._conn["odom"] = add(odom_topic, "nav_msgs/msg/Odometry", typestore=self.ts)
+        self._conn[scan_topic] = add(scan_topic, "sensor_msgs/msg/LaserScan", typestore=self.ts)
+        self._conn[odom_topic] = add(odom_topic, "nav_msgs/msg/Odometry", typestore=self.ts)
         if self.publish_tf:
-            self._conn["tf"] = add("/tf", "tf2_msgs/msg/TFMessage", typestore=self.ts)
+            self._conn["/tf"] = add("/tf", "tf2_msgs/msg/TFMessage", typestore=self.ts)
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
@@ -81,8 +81,10 @@ class BagWriter:
                 translation=T["geometry_msgs/msg/Vector3"](x=xyz[0], y=xyz[1], z=xyz[2]),
                 rotation=T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])))
 
-    def _write(self, key: str, t: float, msg: Any, msgtype: str) -> None:
-        self._writer.write(self._conn[key], int(round(t * 1e9)), self.ts.serialize_ros1(msg, msgtype))
+    def _write(self, topic: str, t: float, msg: Any, msgtype: str) -> None:
+        if topic not in self._conn:   # an extra topic: connections can be added while open
+            self._conn[topic] = self._writer.add_connection(topic, msgtype, typestore=self.ts)
+        self._writer.write(self._conn[topic], int(round(t * 1e9)), self.ts.serialize_ros1(msg, msgtype))
 
     # public -------------------------------------------------------------------------
     def static(self, transforms: list[StaticTransform], t: float = 0.0) -> None:
@@ -95,8 +97,8 @@ class BagWriter:
             self._transform(t, s.parent, s.child, s.translation, s.rotation) for s in transforms])
         self._writer.write(conn, int(round(t * 1e9)), self.ts.serialize_ros1(msg, "tf2_msgs/msg/TFMessage"))
 
-    def scan(self, rec: ScanRecord) -> None:
-        """One sensor_msgs/LaserScan; no-return beams stay ``inf``."""
+    def scan(self, rec: ScanRecord, topic: str | None = None) -> None:
+        """One sensor_msgs/LaserScan (on ``topic`` if given, else the scan topic); no-return beams stay ``inf``."""
         ranges = np.asarray(rec.ranges, dtype=np.float32)
         msg = self.t["sensor_msgs/msg/LaserScan"](
             header=self._header(rec.t, rec.frame_id, self._seq["scan"]),
@@ -105,7 +107,7 @@ class BagWriter:
             range_min=rec.range_min, range_max=rec.range_max,
             ranges=ranges, intensities=np.zeros(0, dtype=np.float32))
         self._seq["scan"] += 1
-        self._write("scan", rec.t, msg, "sensor_msgs/msg/LaserScan")
+        self._write(topic or self._topics[0], rec.t, msg, "sensor_msgs/msg/LaserScan")
 
     def odom(self, rec: OdomRecord) -> None:
         """One nav_msgs/Odometry (zero twist and covariances) and its /tf broadcast."""
@@ -121,8 +123,14 @@ class BagWriter:
             twist=T["geometry_msgs/msg/TwistWithCovariance"](
                 twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)))
         self._seq["odom"] += 1
-        self._write("odom", rec.t, msg, "nav_msgs/msg/Odometry")
+        self._write(self._topics[1], rec.t, msg, "nav_msgs/msg/Odometry")
         if self.publish_tf:
             tf = T["tf2_msgs/msg/TFMessage"](transforms=[
                 self._transform(rec.t, rec.frame_id, rec.child_frame_id, (rec.x, rec.y, 0.0), q)])
-            self._write("tf", rec.t, tf, "tf2_msgs/msg/TFMessage")
+            self._write("/tf", rec.t, tf, "tf2_msgs/msg/TFMessage")
+
+    def tf(self, transforms: list[StaticTransform], t: float) -> None:
+        """Broadcast transforms on /tf at time ``t`` (e.g. a mounting published the tf1 way)."""
+        msg = self.t["tf2_msgs/msg/TFMessage"](transforms=[
+            self._transform(t, s.parent, s.child, s.translation, s.rotation) for s in transforms])
+        self._write("/tf", t, msg, "tf2_msgs/msg/TFMessage")

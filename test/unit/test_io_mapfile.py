@@ -1,0 +1,123 @@
+"""map_server files: exact pixels and YAML, round trip, atomic failure behaviour."""
+from __future__ import annotations
+
+import errno
+import os
+
+import numpy as np
+import pytest
+import yaml
+
+from fastslam.io import mapfile
+from fastslam.io.mapfile import MapLoadError, MapSaveError, load_map, save_map
+
+# grid row 0 (bottom) = [-1, 0, 25], row 1 (top) = [26, 65, 100]
+OCC = np.array([[-1, 0, 25], [26, 65, 100]], dtype=np.int8)
+HEADER = b"P5\n# CREATOR: fastslam.io.mapfile 0.050 m/pix\n3 2\n255\n"
+# image rows top first: grid row 1 -> 205 0 0, then grid row 0 -> 205 254 254
+PIXELS = bytes([205, 0, 0, 205, 254, 254])
+
+
+def test_pgm_bytes_are_exact(tmp_path):
+    pgm, yml = save_map(tmp_path / "m", OCC, 0.05, (-1.5, 2.0, 0.25))
+    assert pgm == tmp_path / "m.pgm" and yml == tmp_path / "m.yaml"
+    assert pgm.read_bytes() == HEADER + PIXELS
+
+
+def test_yaml_fields(tmp_path):
+    save_map(tmp_path / "maps.yaml", OCC, 0.05, (-1.5, 2.0, 0.25), occupied_thresh=0.7, free_thresh=0.2)
+    meta = yaml.safe_load((tmp_path / "maps.yaml").read_text())
+    assert meta == {"image": "maps.pgm", "resolution": 0.05, "origin": [-1.5, 2.0, 0.25], "negate": 0,
+                    "occupied_thresh": 0.7, "free_thresh": 0.2, "mode": "trinary"}
+
+
+def test_round_trip_follows_the_trinary_rule(tmp_path):
+    save_map(tmp_path / "m", OCC, 0.05, (-1.5, 2.0, 0.25))
+    occ, res, origin = load_map(tmp_path / "m.yaml")
+    # 205 -> p = 50/255 = 0.19608 in [free, occ] -> -1; 254 -> p = 0.0039 -> 0; 0 -> p = 1 -> 100
+    np.testing.assert_array_equal(occ, [[-1, 0, 0], [-1, 100, 100]])
+    assert occ.dtype == np.int8 and res == 0.05 and origin == (-1.5, 2.0, 0.25)
+
+
+def test_clean_maps_round_trip_exactly(tmp_path):
+    rng = np.random.default_rng(0)
+    occ = rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(37, 53))
+    save_map(tmp_path / "r", occ, 0.1, (0.0, 0.0, 0.0))
+    back, _, _ = load_map(tmp_path / "r.yaml")
+    np.testing.assert_array_equal(back, occ)
+
+
+def test_load_negate_and_comment_lines(tmp_path):
+    (tmp_path / "n.pgm").write_bytes(b"P5\n# a comment\n# another\n2 1\n255\n" + bytes([0, 255]))
+    (tmp_path / "n.yaml").write_text("image: n.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 1\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    occ, _, _ = load_map(tmp_path / "n.yaml")
+    np.testing.assert_array_equal(occ, [[0, 100]])   # negate: p = v / 255
+
+
+def test_missing_image_is_a_clear_error(tmp_path):
+    (tmp_path / "x.yaml").write_text("image: nope.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n")
+    with pytest.raises(MapLoadError, match="nope.pgm"):
+        load_map(tmp_path / "x.yaml")
+
+
+def test_parent_is_a_file_raises_map_save_error(tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    with pytest.raises(MapSaveError, match="cannot write map file"):
+        save_map(tmp_path / "file" / "map", OCC, 0.05, (0, 0, 0))
+
+
+def _old_map(tmp_path):
+    save_map(tmp_path / "m", OCC, 0.05, (0.0, 0.0, 0.0))
+    return (tmp_path / "m.pgm").read_bytes(), (tmp_path / "m.yaml").read_text()
+
+
+def test_failed_rename_keeps_old_files_and_removes_temps(tmp_path, monkeypatch):
+    old_pgm, old_yaml = _old_map(tmp_path)
+
+    def full_disk(src, dst):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(mapfile.os, "replace", full_disk)
+    with pytest.raises(MapSaveError, match="No space left"):
+        save_map(tmp_path / "m", np.zeros((4, 4), np.int8), 0.1, (1.0, 1.0, 0.0))
+    assert (tmp_path / "m.pgm").read_bytes() == old_pgm
+    assert (tmp_path / "m.yaml").read_text() == old_yaml
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
+
+
+def test_failure_staging_the_yaml_leaves_both_old_files(tmp_path, monkeypatch):
+    old_pgm, old_yaml = _old_map(tmp_path)
+    calls = []
+    real_fsync = os.fsync
+
+    def fsync_fails_second_time(fd):
+        calls.append(fd)
+        if len(calls) == 2:
+            raise OSError(errno.EIO, "Input/output error")
+        real_fsync(fd)
+
+    monkeypatch.setattr(mapfile.os, "fsync", fsync_fails_second_time)
+    with pytest.raises(MapSaveError):
+        save_map(tmp_path / "m", np.zeros((4, 4), np.int8), 0.1, (1.0, 1.0, 0.0))
+    assert len(calls) == 2
+    assert (tmp_path / "m.pgm").read_bytes() == old_pgm          # the PGM was not replaced either
+    assert (tmp_path / "m.yaml").read_text() == old_yaml
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
+
+
+@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root ignores folder permissions")
+def test_read_only_folder(tmp_path):
+    old_pgm, _ = _old_map(tmp_path)
+    tmp_path.chmod(0o555)
+    try:
+        with pytest.raises(MapSaveError):
+            save_map(tmp_path / "m", np.zeros((4, 4), np.int8), 0.1, (0.0, 0.0, 0.0))
+    finally:
+        tmp_path.chmod(0o755)
+    assert (tmp_path / "m.pgm").read_bytes() == old_pgm
+
+
+def test_rejects_non_2d(tmp_path):
+    with pytest.raises(ValueError, match="shape"):
+        save_map(tmp_path / "m", np.zeros(5, np.int8), 0.1, (0, 0, 0))

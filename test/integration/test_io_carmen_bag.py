@@ -1,0 +1,97 @@
+"""The Intel CARMEN log -> bag -> fastslam.io.bag round trip, and the converter CLI."""
+from __future__ import annotations
+
+import gzip
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fastslam import carmen as carmen_cli
+from fastslam.geometry import wrap_angle
+from fastslam.io.bag import read_bag
+from fastslam.io.carmen import read_log
+from fastslam.io.carmen_bag import convert
+from fastslam.io.trajectory import read_trajectory
+from fastslam.trajectory_metrics import ate
+
+pytest.importorskip("rosbags")
+
+INTEL = Path("/work/shared/data/intel-corrected.log.gz")
+N = 50
+pytestmark = pytest.mark.skipif(not INTEL.is_file(), reason="Intel log not available")
+
+
+def raw_flaser(n: int) -> list[list[str]]:
+    """The first n FLASER lines split into fields, read independently of the parser."""
+    rows = []
+    with gzip.open(INTEL, "rt") as f:
+        for line in f:
+            if line.startswith("FLASER "):
+                rows.append(line.split())
+                if len(rows) == n:
+                    break
+    return rows
+
+
+@pytest.fixture(scope="module")
+def intel_slice(tmp_path_factory):
+    out = tmp_path_factory.mktemp("intel") / "intel50.bag"
+    result = convert(read_log(INTEL, limit=N), out, odom_noise=0.0)
+    return result, read_bag(out)
+
+
+def test_ranges_survive_the_round_trip(intel_slice):
+    _, data = intel_slice
+    rows = raw_flaser(N)
+    assert len(data.scans) == N
+    for row, scan in zip(rows, data.scans):
+        raw = np.array(row[2:182], dtype=np.float64)
+        expected = np.where(raw >= 81.83, np.inf, raw).astype(np.float32)
+        np.testing.assert_array_equal(scan.ranges, expected)
+        assert scan.angle_min == pytest.approx(-math.pi / 2)
+        assert scan.angle_increment == pytest.approx(math.pi / 180)
+        assert scan.range_max == pytest.approx(81.83) and scan.frame_id == "laser"
+    assert sum(np.isinf(s.ranges).sum() for s in data.scans) > 0    # the slice has no-returns
+
+
+def test_times_and_poses_survive_the_round_trip(intel_slice):
+    result, data = intel_slice
+    rows = raw_flaser(N)
+    times = np.array([float(r[-1]) for r in rows])
+    poses = np.array([[float(v) for v in r[185:188]] for r in rows])   # odom_x odom_y odom_theta
+    assert np.all(np.diff(times) > 0)
+    np.testing.assert_allclose([s.t for s in data.scans], times, atol=1e-6)
+    np.testing.assert_allclose([o.t for o in data.odoms], times, atol=1e-6)
+    odo = data.odom_poses()
+    np.testing.assert_allclose(odo[:, 1:3], poses[:, :2], atol=1e-9)       # level 0 = the log
+    np.testing.assert_allclose(wrap_angle(odo[:, 3] - poses[:, 2]), 0.0, atol=1e-9)
+    assert data.mount.found and (data.mount.x, data.mount.y, data.mount.yaw) == (0.0, 0.0, 0.0)
+    gt_t, gt = read_trajectory(result.reference)
+    np.testing.assert_array_equal(gt_t, result.times)
+    np.testing.assert_array_equal(gt, poses)
+
+
+def test_cli_noise_is_deterministic_and_seeded(tmp_path, capsys):
+    def run(name: str, seed: int) -> np.ndarray:
+        out = tmp_path / name
+        assert carmen_cli.main([str(INTEL), "--out", str(out), "--limit", "200",
+                                "--odom-noise", "1", "--seed", str(seed)]) == 0
+        return read_bag(out).odom_poses()
+
+    a, b, c = run("a.bag", 4), run("b.bag", 4), run("c.bag", 5)
+    assert "dead-reckoning ATE" in capsys.readouterr().out
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a[:, 1:3] - c[:, 1:3]).max() > 0.05
+    gt_t, gt = read_trajectory(tmp_path / "a.bag.gt.txt")
+    _, odo = read_trajectory(tmp_path / "a.bag.odom.txt")
+    np.testing.assert_array_equal(odo[:, :2], a[:, 1:3])
+    assert ate(gt, odo) > 0.1          # 200 scans of level-1 noise leave a visible drift
+
+
+def test_cli_refuses_to_overwrite(tmp_path, capsys):
+    (tmp_path / "x.bag").write_bytes(b"old")
+    assert carmen_cli.main([str(INTEL), "--out", str(tmp_path / "x.bag"), "--limit", "3"]) == 1
+    assert "exists" in capsys.readouterr().err
+    assert (tmp_path / "x.bag").read_bytes() == b"old"

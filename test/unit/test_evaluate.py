@@ -1,0 +1,128 @@
+"""Trajectory metrics (ATE after 2D alignment, RPE, time matching) and the evaluate CLI."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from fastslam import evaluate
+from fastslam.io.trajectory import TrajectoryError, read_trajectory, write_trajectory
+from fastslam.trajectory_metrics import align_2d, apply_alignment, ate, match_by_time, rpe, score
+
+
+def loop(rng: np.random.Generator, n: int = 100) -> np.ndarray:
+    th = np.cumsum(rng.uniform(-0.3, 0.3, n))
+    xy = np.cumsum(np.column_stack([np.cos(th), np.sin(th)]), axis=0)
+    return np.column_stack([xy, th])
+
+
+def moved(poses: np.ndarray, angle: float, shift: tuple[float, float]) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return apply_alignment(np.array([[c, -s], [s, c]]), np.array(shift), poses)
+
+
+def test_rigidly_moved_copy_scores_zero():
+    ref = loop(np.random.default_rng(0))
+    est = moved(ref, 0.7, (5.0, -2.0))
+    assert ate(ref, est) < 1e-9
+    trans, rot = rpe(ref, est)
+    assert trans < 1e-9 and rot < 1e-9
+
+
+def test_alignment_recovers_the_inverse_motion():
+    ref = loop(np.random.default_rng(1))
+    rot, t = align_2d(moved(ref, -2.5, (1.0, 3.0)), ref)
+    assert math.atan2(rot[1, 0], rot[0, 0]) == pytest.approx(2.5, abs=1e-12)
+
+
+def test_alternating_offsets_give_their_size():
+    ref = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
+    est = ref + [[0, 0.1, 0], [0, -0.1, 0], [0, -0.1, 0], [0, 0.1, 0]]
+    # symmetric offsets: the best alignment is the identity, every error is 0.1
+    assert ate(ref, est) == pytest.approx(0.1, abs=1e-12)
+
+
+def test_scaled_square_cannot_be_aligned_away():
+    ref = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]], float)
+    est = ref.copy()
+    est[:, :2] = 1 + 1.1 * (ref[:, :2] - 1)          # 10 % bigger about the centre
+    # no scale in the alignment: each corner is 0.1 * sqrt(2) off
+    assert ate(ref, moved(est, 0.3, (4, 4))) == pytest.approx(0.1 * math.sqrt(2), abs=1e-12)
+
+
+def test_rpe_of_too_long_steps():
+    ref = np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)])
+    est = np.column_stack([1.1 * np.arange(5.0), np.zeros(5), np.zeros(5)])
+    trans, rot = rpe(ref, est)
+    assert trans == pytest.approx(0.1) and rot == pytest.approx(0.0)
+    assert rpe(ref, est, delta=2)[0] == pytest.approx(0.2)
+
+
+def test_rpe_of_a_constant_heading_error():
+    ref = np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)])
+    est = ref.copy()
+    est[:, 2] = 0.1     # same positions, heading off by 0.1: each 1 m step looks rotated by -0.1
+    trans, rot = rpe(ref, est)
+    assert trans == pytest.approx(2 * math.sin(0.05)) and rot == pytest.approx(0.0, abs=1e-12)
+
+
+def test_nearest_time_matching_drops_far_poses():
+    ref_t, ref = np.array([0.0, 1.0, 2.0]), np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float)
+    t, r, e = match_by_time(ref_t, ref, [0.01, 1.5, 2.04], np.ones((3, 3)), max_dt=0.05)
+    np.testing.assert_array_equal(t, [0.01, 2.04])
+    np.testing.assert_array_equal(r[:, 0], [0.0, 2.0])
+
+
+def test_interpolated_matching_wraps_the_heading():
+    ref_t, ref = np.array([0.0, 1.0]), np.array([[0, 0, 3.0], [2, 4, -3.0]])
+    t, r, _ = match_by_time(ref_t, ref, [0.5, 1.5], np.zeros((2, 3)), interpolate=True)
+    np.testing.assert_array_equal(t, [0.5])        # 1.5 lies outside the reference
+    np.testing.assert_allclose(r[0, :2], [1.0, 2.0])
+    assert abs(r[0, 2]) == pytest.approx(math.pi)   # half-way the short way round, not 0
+
+
+def test_score_counts_matches():
+    ref = loop(np.random.default_rng(2), 20)
+    t = np.arange(20) * 0.1
+    s = score(t, ref, t + 0.01, moved(ref, 1.0, (2, 2)), max_dt=0.02)
+    assert s.matched == 20 and s.ate_rmse < 1e-9 and s.ate_max < 1e-9
+
+
+def test_trajectory_files_round_trip_and_skip_comments(tmp_path):
+    poses = loop(np.random.default_rng(3), 10)
+    path = write_trajectory(tmp_path / "a.txt", np.arange(10) * 0.5, poses, comment="two\nlines")
+    text = path.read_text()
+    assert text.startswith("# two\n# lines\n# t x y theta\n")
+    t, p = read_trajectory(path)
+    np.testing.assert_array_equal(t, np.arange(10) * 0.5)
+    np.testing.assert_array_equal(p, poses)
+
+
+def test_bad_trajectory_line(tmp_path):
+    (tmp_path / "b.txt").write_text("0 1 2 3\n1 2 3\n")
+    with pytest.raises(TrajectoryError, match="b.txt:2"):
+        read_trajectory(tmp_path / "b.txt")
+
+
+def test_cli_prints_json(tmp_path, capsys):
+    ref = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
+    est = ref + [[0, 0.1, 0], [0, -0.1, 0], [0, -0.1, 0], [0, 0.1, 0]]
+    t = np.arange(4.0)
+    write_trajectory(tmp_path / "ref.txt", t, ref)
+    write_trajectory(tmp_path / "est.txt", t + 0.02, moved(est, 0.4, (1, 1)))
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "est.txt"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["matched"] == 4 and out["ate_rmse"] == pytest.approx(0.1, abs=1e-12)
+    assert out["rpe_trans"] == pytest.approx(math.sqrt((0.2 ** 2 + 0 + 0.2 ** 2) / 3))
+
+
+def test_cli_table_and_errors(tmp_path, capsys):
+    write_trajectory(tmp_path / "ref.txt", [0.0, 1.0], np.zeros((2, 3)))
+    write_trajectory(tmp_path / "far.txt", [5.0, 6.0], np.zeros((2, 3)))
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "ref.txt")]) == 0
+    assert "ATE rmse [m]" in capsys.readouterr().out
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "far.txt")]) == 1
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "missing.txt")]) == 2
+    assert "cannot read trajectory" in capsys.readouterr().err

@@ -21,7 +21,7 @@ from fastslam.trajectory_metrics import ate
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fastslam.carmen", description=__doc__.split("\n")[1])
+    ap = argparse.ArgumentParser(prog="python -m fastslam.carmen", description=__doc__.split("\n")[0])
     ap.add_argument("log", help="CARMEN log, plain or gzip")
     ap.add_argument("--out", required=True, help="bag to create (must not exist)")
     ap.add_argument("--odom-noise", type=float, default=0.0, metavar="LEVEL",

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.io.bag import BagError, OdomRecord, ScanRecord, StaticTransform, read_bag, write_bag
+from fastslam.io.bag import BagError, _pick, OdomRecord, ScanRecord, StaticTransform, read_bag, write_bag
 from fastslam.io.bag_write import BagWriter
 from fastslam.io.transforms import LaserMount
 
@@ -121,3 +121,10 @@ def test_laser_in_the_base_frame(tmp_path):
     scans, odoms = scans_and_odoms(np.random.default_rng(5), frame="base_link")
     mount = read_bag(write_bag(tmp_path / "b.bag", scans, odoms)).mount
     assert mount == LaserMount(laser_frame="base_link", found=True)
+
+
+def test_topic_choice_messages():
+    topics = {"/odom": "nav_msgs/msg/Odometry", "/imu": "sensor_msgs/msg/Imu"}
+    with pytest.raises(BagError, match=r"no sensor_msgs/msg/LaserScan topic in the bag; topics: /imu \[sensor_msgs/msg/Imu\]"):
+        _pick(topics, "sensor_msgs/msg/LaserScan", None, "scan")
+    assert _pick(topics, "nav_msgs/msg/Odometry", None, "odometry") == "/odom"

@@ -12,7 +12,7 @@ from fastslam import carmen as carmen_cli
 from fastslam.geometry import wrap_angle
 from fastslam.io.bag import read_bag
 from fastslam.io.carmen import read_log
-from fastslam.io.carmen_bag import convert
+from fastslam.io.carmen_bag import convert, reference_path
 from fastslam.io.trajectory import read_trajectory
 from fastslam.trajectory_metrics import ate
 
@@ -20,7 +20,7 @@ pytest.importorskip("rosbags")
 
 INTEL = Path("/work/shared/data/intel-corrected.log.gz")
 N = 50
-pytestmark = pytest.mark.skipif(not INTEL.is_file(), reason="Intel log not available")
+needs_intel = pytest.mark.skipif(not INTEL.is_file(), reason="Intel log not available")
 
 
 def raw_flaser(n: int) -> list[list[str]]:
@@ -42,6 +42,7 @@ def intel_slice(tmp_path_factory):
     return result, read_bag(out)
 
 
+@needs_intel
 def test_ranges_survive_the_round_trip(intel_slice):
     _, data = intel_slice
     rows = raw_flaser(N)
@@ -56,6 +57,7 @@ def test_ranges_survive_the_round_trip(intel_slice):
     assert sum(np.isinf(s.ranges).sum() for s in data.scans) > 0    # the slice has no-returns
 
 
+@needs_intel
 def test_times_and_poses_survive_the_round_trip(intel_slice):
     result, data = intel_slice
     rows = raw_flaser(N)
@@ -73,6 +75,7 @@ def test_times_and_poses_survive_the_round_trip(intel_slice):
     np.testing.assert_array_equal(gt, poses)
 
 
+@needs_intel
 def test_cli_noise_is_deterministic_and_seeded(tmp_path, capsys):
     def run(name: str, seed: int) -> np.ndarray:
         out = tmp_path / name
@@ -90,8 +93,28 @@ def test_cli_noise_is_deterministic_and_seeded(tmp_path, capsys):
     assert ate(gt, odo) > 0.1          # 200 scans of level-1 noise leave a visible drift
 
 
+@needs_intel
 def test_cli_refuses_to_overwrite(tmp_path, capsys):
     (tmp_path / "x.bag").write_bytes(b"old")
     assert carmen_cli.main([str(INTEL), "--out", str(tmp_path / "x.bag"), "--limit", "3"]) == 1
     assert "exists" in capsys.readouterr().err
     assert (tmp_path / "x.bag").read_bytes() == b"old"
+
+
+ROBOTLASER = ("ROBOTLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 3 1.0 20.0 2.5 0 {lx} {ly} 0.0 {rx} 0.0 0.0 "
+              "0.3 0.1 0.5 0.4 0.0 {t} host {t}\n")
+
+
+def test_robotlaser_mount_goes_to_tf_static(tmp_path):
+    # laser 0.4 m ahead of the robot centre in every line
+    text = "".join(ROBOTLASER.format(lx=0.4 + k, ly=0.0, rx=float(k), t=5.0 + k) for k in range(3))
+    (tmp_path / "r.log").write_text(text)
+    result = convert(read_log(tmp_path / "r.log"), tmp_path / "r.bag")
+    data = read_bag(tmp_path / "r.bag")
+    assert result.mount == pytest.approx((0.4, 0.0, 0.0))
+    assert (data.mount.x, data.mount.y, data.mount.yaw) == pytest.approx((0.4, 0.0, 0.0))
+    assert data.mount.found and not data.mount.upside_down
+    np.testing.assert_allclose(data.odom_poses()[:, 1], [0.0, 1.0, 2.0])   # robot poses, not laser poses
+    np.testing.assert_array_equal(data.scans[0].ranges, np.array([1.0, np.inf, 2.5], np.float32))
+    assert data.scans[0].range_max == 20.0
+    assert reference_path(tmp_path / "r.bag").is_file()

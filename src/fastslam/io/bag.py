@@ -105,9 +105,10 @@ def _pick(topics: dict[str, str], msgtype: str, wanted: str | None, what: str) -
             raise BagError(f"{what} topic {wanted!r} with type {msgtype} not in the bag; topics: {listing}")
         return wanted
     found = [t for t, m in topics.items() if m == msgtype]
-    if len(found) != 1:
-        reason = "no" if not found else f"{len(found)}"
-        raise BagError(f"{reason} {msgtype} topics, pass the {what} topic explicitly; topics: {listing}")
+    if not found:
+        raise BagError(f"no {msgtype} topic in the bag; topics: {listing}")
+    if len(found) > 1:
+        raise BagError(f"{len(found)} {msgtype} topics, name the {what} topic to use; topics: {listing}")
     return found[0]
 
 

@@ -11,7 +11,7 @@ from sensor_msgs.msg import LaserScan
 
 from fastslam.geometry import yaw_from_quaternion
 from fastslam.grid import GridMaps, logodds_to_occupancy
-from fastslam.scan import Scan
+from fastslam.scan import Scan, laser_problem
 
 
 class BadMessage(ValueError):
@@ -43,21 +43,10 @@ def odom_pose(msg) -> np.ndarray:
 
 def check_scan(msg: LaserScan) -> None:
     """Rejects scans whose geometry is unusable (readings themselves are classified later)."""
-    n = len(msg.ranges)
-    if n == 0:
-        raise BadMessage("empty scan")
-    for name in ("angle_min", "angle_increment", "range_min", "range_max"):
-        if not math.isfinite(getattr(msg, name)):
-            raise BadMessage(f"scan {name} is {getattr(msg, name)}")
-    if msg.angle_increment == 0:
-        raise BadMessage("scan angle_increment is 0")
-    if msg.range_max <= 0 or msg.range_max <= msg.range_min:
-        raise BadMessage(f"scan range_max={msg.range_max} must exceed range_min={msg.range_min} and 0")
-    if math.isfinite(msg.angle_max):
-        implied = (msg.angle_max - msg.angle_min) / msg.angle_increment + 1
-        # One beam either way is common (0..2pi lidars count the fence post differently).
-        if abs(implied - n) > 1.5:
-            raise BadMessage(f"scan has {n} ranges but its angles imply {implied:.0f}")
+    problem = laser_problem(len(msg.ranges), msg.angle_min, msg.angle_increment, msg.range_min,
+                            msg.range_max, msg.angle_max)
+    if problem:
+        raise BadMessage(problem)
 
 
 def scan_from_msg(msg: LaserScan, mount: tuple[float, float, float], upside_down: bool) -> Scan:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 import traceback
 
 import numpy as np
@@ -18,7 +19,7 @@ from std_srvs.srv import Trigger, TriggerResponse
 from fastslam.config import SlamConfig
 from fastslam.geometry import compose, inverse
 from fastslam.io.mapfile import MapSaveError, save_map
-from fastslam.odombuffer import OdomBuffer
+from fastslam.frontend import Dropped, Frontend
 from fastslam.slam import FastSlam
 
 from . import convert
@@ -33,11 +34,10 @@ class SlamNode:
         self.cfg = cfg
         self.slam = FastSlam(slam_cfg)
         self.lock = threading.RLock()  # the filter, the odometry buffer, map->odom
-        self.odom = OdomBuffer(cfg.odom_buffer)
-        self.rebase = False            # odometry jumped: take its next pose as a new origin
+        self.front = Frontend(self.slam, odom_timeout=cfg.odom_timeout, odom_buffer=cfg.odom_buffer,
+                              max_odom_speed=cfg.max_odom_speed)
         self.map_to_odom = np.zeros(3)
         self.mounts: dict[str, tuple[tuple[float, float, float], bool]] = {}
-        self.last_stamp: float | None = None
         self.last_map_stamp = -np.inf
         self.updates = 0
         self.dropped: dict[str, int] = {}
@@ -70,25 +70,16 @@ class SlamNode:
     def on_odom(self, msg: Odometry) -> None:
         try:
             pose = convert.odom_pose(msg)
-            t = msg.header.stamp.to_sec()
             with self.lock:
-                latest = self.odom.latest
-                if latest is not None and t < latest[0]:
-                    return  # older than what we have: the scan side notices a restart
-                if latest is not None and np.hypot(*(pose[:2] - latest[1][:2])) > self.cfg.max_odom_jump:
-                    rospy.logwarn(f"odometry jumped {np.hypot(*(pose[:2] - latest[1][:2])):.2f} m "
-                                  f"(> max_odom_jump {self.cfg.max_odom_jump}): treating it as a kidnap, "
-                                  "the jump is not integrated")
-                    self.odom.clear()
-                    self.rebase = True
-                self.odom.add(t, pose)
-        except BadMessage as err:
+                self.front.add_odom(msg.header.stamp.to_sec(), pose)
+                self._log_events()
+        except (BadMessage, Dropped) as err:
             self._drop(f"odometry: {err}")
 
     def on_scan(self, msg: LaserScan) -> None:
         try:
             self._process(msg)
-        except BadMessage as err:
+        except (BadMessage, Dropped) as err:
             self._drop(str(err))
         except Exception:  # a callback must never take the node down
             rospy.logerr_throttle(5.0, "scan update failed:\n" + traceback.format_exc())
@@ -97,31 +88,44 @@ class SlamNode:
         convert.check_scan(msg)
         stamp = msg.header.stamp.to_sec()
         now = rospy.Time.now().to_sec()
-        if stamp <= 0:
-            raise BadMessage("scan stamped zero")
         if now > 0 and stamp > now + self.cfg.max_future:
             raise BadMessage(f"scan stamped {stamp - now:.1f} s in the future")
+        self._wait_for_odom(stamp)
         with self.lock:
-            if self.last_stamp is not None and stamp < self.last_stamp:
-                self._reset(f"time went backwards ({self.last_stamp:.2f} -> {stamp:.2f} s): "
-                            "bag restarted or looped?")
             mount, upside_down = self._mount(msg.header.frame_id)
-            odom = self._odom_at(stamp)
-            scan = convert.scan_from_msg(msg, mount, upside_down)
-            if self.rebase:
-                self.slam.rebase_odometry(odom)
-                self.rebase = False
-            info = self.slam.step(odom, scan)
-            self.last_stamp = stamp
+            try:
+                info = self.front.add_scan(convert.scan_from_msg(msg, mount, upside_down))
+            finally:
+                self._log_events()
             if not info.processed:
                 return
             best = self.slam.poses[self.slam.best]
-            self.map_to_odom = compose(best, inverse(odom))
+            self.map_to_odom = compose(best, inverse(self.front.last_odom))
             self.updates += 1
         self._publish_update(msg.header.stamp, info)
         if stamp - self.last_map_stamp >= self.cfg.map_update_interval:
             self.last_map_stamp = stamp
             self.publish_map(msg.header.stamp)
+
+    def _wait_for_odom(self, stamp: float) -> None:
+        """Gives odometry published with the scan a moment to arrive, so the scan is
+        matched with odometry at its own stamp, as the offline runner does."""
+        deadline = time.monotonic() + self.cfg.odom_wait
+        while time.monotonic() < deadline and not rospy.is_shutdown():
+            with self.lock:
+                latest = self.front.odom.latest
+            if latest is not None and latest[0] >= stamp:
+                return
+            time.sleep(0.002)
+
+    def _log_events(self) -> None:
+        for event in self.front.events:
+            rospy.logwarn(event)
+            if event.startswith("resetting"):
+                self.tf_buffer.clear()
+                self.map_to_odom = np.zeros(3)
+                self.last_map_stamp = -np.inf
+        self.front.events.clear()
 
     def _mount(self, frame: str) -> tuple[tuple[float, float, float], bool]:
         """The laser's pose on the base, looked up in tf once per frame."""
@@ -136,25 +140,6 @@ class SlamNode:
             rospy.loginfo(f"laser '{frame}' on '{self.cfg.base_frame}': x y yaw = "
                           f"{np.round(self.mounts[frame][0], 3).tolist()}, upside down: {self.mounts[frame][1]}")
         return self.mounts[frame]
-
-    def _odom_at(self, stamp: float) -> np.ndarray:
-        pose = self.odom.at(stamp, self.cfg.odom_timeout)
-        if pose is not None:
-            return pose
-        latest = self.odom.latest
-        if latest is None:
-            raise BadMessage(f"no odometry received yet on '{self.sub_odom.resolved_name}'")
-        raise BadMessage(f"no odometry at the scan's time (latest odometry is {stamp - latest[0]:+.2f} s "
-                         f"from the scan; odom_timeout {self.cfg.odom_timeout} s)")
-
-    def _reset(self, why: str) -> None:
-        rospy.logwarn(f"resetting the filter: {why}")
-        self.slam.reset()
-        self.odom.clear()
-        self.tf_buffer.clear()
-        self.map_to_odom = np.zeros(3)
-        self.last_stamp = None
-        self.last_map_stamp = -np.inf
 
     def _drop(self, why: str) -> None:
         key = why.split(":")[0]

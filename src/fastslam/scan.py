@@ -1,6 +1,7 @@
 """A laser scan as the core sees it, and the beams an update uses."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -58,6 +59,28 @@ class Beams:
     free_range: NDArray[np.float64]
     range_min: float
     mount: tuple[float, float] = field(default=(0.0, 0.0))
+
+
+def laser_problem(count: int, angle_min: float, angle_increment: float, range_min: float,
+                  range_max: float, angle_max: float | None = None) -> str | None:
+    """Why a scan's geometry is unusable, or None. Readings themselves are classified
+    later (select_beams); this only rejects what cannot be interpreted at all."""
+    if count == 0:
+        return "empty scan"
+    for name, v in (("angle_min", angle_min), ("angle_increment", angle_increment),
+                    ("range_min", range_min), ("range_max", range_max)):
+        if not math.isfinite(v):
+            return f"scan {name} is {v}"
+    if angle_increment == 0:
+        return "scan angle_increment is 0"
+    if range_max <= 0 or range_max <= range_min:
+        return f"scan range_max={range_max} must exceed range_min={range_min} and 0"
+    if angle_max is not None and math.isfinite(angle_max):
+        implied = (angle_max - angle_min) / angle_increment + 1
+        # One beam either way is common (0..2pi lidars count the fence post differently).
+        if abs(implied - count) > 1.5:
+            return f"scan has {count} ranges but its angles imply {implied:.0f}"
+    return None
 
 
 def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:

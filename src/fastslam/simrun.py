@@ -7,7 +7,7 @@ which starts at the spawn pose; the truth is expressed in it for evaluation.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -33,6 +33,8 @@ class SimRun:
     odom: np.ndarray        # (T, 4) the odometry the filter saw, odom (= map) frame
     seconds: float          # wall time spent in FastSlam.step
     updates: int
+    scans: list = field(default_factory=list)   # ScanRecord of every scan, when recorded
+    odoms: list = field(default_factory=list)   # OdomRecord of every odometry tick, when recorded
 
     def metrics(self) -> dict[str, Any]:
         traj = self.slam.trajectory()
@@ -58,13 +60,16 @@ def world_path(name: str) -> Path:
 
 
 def run(world: str, slam_cfg: SlamConfig, *, route: str | None = None, sim: Mapping[str, Any] | None = None,
-        seed: int = 0, max_time: float = 1200.0) -> SimRun:
+        seed: int = 0, max_time: float = 1200.0, record: bool = False) -> SimRun:
     """Drives the world's route (default worlds/<world>.route.yaml) to its end.
 
     Args:
         sim: SimConfig overrides (e.g. {"odom_noise": False}).
         seed: the simulator's noise seed (the filter has its own, in slam_cfg).
+        record: keep every scan and odometry message, to write a bag from.
     """
+    from .io.bag import OdomRecord, ScanRecord
+
     w = load_world(world_path(world))
     route_file = Path(route) if route else WORLDS / f"{Path(world).stem}.route.yaml"
     sim_cfg = SimConfig.from_dict({**(sim or {}), "seed": seed})
@@ -72,20 +77,28 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | None = None, sim: Mapp
     slam = FastSlam(slam_cfg)
     lidar = simulation.lidar
     mount = (sim_cfg.laser_x, sim_cfg.laser_y, 0.0)
-    truth, odom = [], []
+    truth, odom, scans, odoms = [], [], [], []
     spent, updates = 0.0, 0
+    angle_min, increment = float(lidar.angles[0]), float(lidar.angles[1] - lidar.angles[0])
     while simulation.time < max_time:
         tick = simulation.step()
         if tick.odom_due:
             truth.append((tick.t, *relative(w.spawn, simulation.robot.pose)))
             odom.append((tick.t, *simulation.odom.pose))
+            if record:
+                odoms.append(OdomRecord(tick.t, *simulation.odom.pose, child_frame_id="base_footprint"))
         if tick.scan is not None:
-            scan = Scan.from_laser(tick.scan, float(lidar.angles[0]), float(lidar.angles[1] - lidar.angles[0]),
-                                   sim_cfg.range_min, sim_cfg.range_max, mount=mount, stamp=tick.t)
+            ranges = tick.scan.astype(np.float32)  # as a LaserScan message carries them
+            if record:
+                scans.append(ScanRecord(tick.t, ranges, angle_min, increment, sim_cfg.range_min,
+                                        sim_cfg.range_max, frame_id="base_scan"))
+            scan = Scan.from_laser(ranges, angle_min, increment, sim_cfg.range_min, sim_cfg.range_max,
+                                   mount=mount, stamp=tick.t)
             start = time.perf_counter()
             info = slam.step(simulation.odom.pose.copy(), scan)
             spent += time.perf_counter() - start
             updates += int(info.processed)
         if tick.route_finished:
             break
-    return SimRun(slam=slam, world=w, truth=np.array(truth), odom=np.array(odom), seconds=spent, updates=updates)
+    return SimRun(slam=slam, world=w, truth=np.array(truth), odom=np.array(odom), seconds=spent,
+                  updates=updates, scans=scans, odoms=odoms)

@@ -1,0 +1,86 @@
+"""The rules between raw sensor streams and the filter, shared by the node and the
+offline runner so that a live replay and an offline run treat every message alike.
+
+Odometry is buffered and interpolated at each scan's stamp; a step between two
+odometry messages faster than max_odom_speed is a kidnap (not integrated); time going backwards resets the filter;
+unusable scans are dropped with a reason.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .odombuffer import OdomBuffer
+from .scan import Scan
+from .slam import FastSlam, StepInfo
+
+
+class Dropped(ValueError):
+    """A message that is not used; str() says why."""
+
+
+@dataclass
+class Frontend:
+    slam: FastSlam
+    odom_timeout: float = 0.5    # a scan this much newer than the newest odometry is dropped [s]
+    odom_buffer: float = 10.0    # [s] of odometry kept
+    max_odom_speed: float = 5.0  # [m/s] a step between two odometry messages faster than this is a kidnap
+    events: list[str] = field(default_factory=list)  # warnings for the caller to log, oldest first
+
+    def __post_init__(self) -> None:
+        self.odom = OdomBuffer(self.odom_buffer)
+        self.last_stamp: float | None = None
+        self.last_odom: NDArray[np.float64] | None = None  # odometry pose of the last processed scan
+        self._rebase = False
+
+    def add_odom(self, t: float, pose: NDArray[np.float64]) -> None:
+        """Buffers an odometry pose (x, y, theta) stamped t; raises Dropped if unusable."""
+        pose = np.asarray(pose, dtype=np.float64)
+        if not (np.all(np.isfinite(pose)) and np.isfinite(t)):
+            raise Dropped("odometry with NaN or inf")
+        latest = self.odom.latest
+        if latest is not None and t < latest[0]:
+            return  # older than what we have; the scan side notices restarts
+        if latest is not None:
+            jump = float(np.hypot(*(pose[:2] - latest[1][:2])))
+            # Sparse logs step a metre between messages; a teleport does it in no time.
+            if jump > self.max_odom_speed * max(t - latest[0], 1e-3):
+                self.events.append(f"odometry jumped {jump:.2f} m in {t - latest[0]:.3f} s (> max_odom_speed "
+                                   f"{self.max_odom_speed} m/s): treating it as a kidnap, the jump is not integrated")
+                self.odom.clear()
+                self._rebase = True
+        self.odom.add(t, pose)
+
+    def add_scan(self, scan: Scan) -> StepInfo:
+        """Runs one filter step with the odometry at the scan's stamp; raises Dropped."""
+        t = scan.stamp
+        if not t > 0:
+            raise Dropped("scan stamped zero")
+        if self.last_stamp is not None and t < self.last_stamp:
+            self.events.append(f"resetting the filter: time went backwards ({self.last_stamp:.2f} -> "
+                               f"{t:.2f} s): bag restarted or looped?")
+            self.reset()
+        odom = self.odom.at(t, self.odom_timeout)
+        if odom is None:
+            latest = self.odom.latest
+            if latest is None:
+                raise Dropped("no odometry received yet")
+            raise Dropped(f"no odometry at the scan's time (latest odometry is {t - latest[0]:+.2f} s "
+                          f"from the scan; odom_timeout {self.odom_timeout} s)")
+        if self._rebase:
+            self.slam.rebase_odometry(odom)
+            self._rebase = False
+        info = self.slam.step(odom, scan)
+        self.last_stamp = t
+        if info.processed:
+            self.last_odom = odom
+        return info
+
+    def reset(self) -> None:
+        self.slam.reset()
+        self.odom.clear()
+        self.last_stamp = None
+        self.last_odom = None
+        self._rebase = False

@@ -1,0 +1,92 @@
+import numpy as np
+import pytest
+
+from fastslam.config import SlamConfig
+from fastslam.frontend import Dropped, Frontend
+from fastslam.scan import Scan, laser_problem
+from fastslam.slam import FastSlam
+
+ANGLES = np.radians(np.arange(0, 360, 10.0))
+
+
+def scan(t, r=1.0):
+    return Scan(ranges=np.full(36, r), angles=ANGLES, range_min=0.1, range_max=3.5, stamp=t)
+
+
+def front():
+    return Frontend(FastSlam(SlamConfig(particles=3, seed=0, toggle_noise=0)))
+
+
+def test_scan_uses_odometry_interpolated_at_its_stamp():
+    f = front()
+    f.add_odom(1.0, np.array([0.0, 0.0, 0.0]))
+    f.add_odom(2.0, np.array([1.0, 0.0, 0.0]))
+    f.add_scan(scan(1.0))
+    f.add_scan(scan(1.5))
+    np.testing.assert_allclose(f.slam.poses[:, 0], 0.5)
+    np.testing.assert_allclose(f.last_odom, [0.5, 0.0, 0.0])
+
+
+def test_drop_reasons():
+    f = front()
+    with pytest.raises(Dropped, match="no odometry received yet"):
+        f.add_scan(scan(1.0))
+    f.add_odom(1.0, np.zeros(3))
+    with pytest.raises(Dropped, match="no odometry at the scan's time"):
+        f.add_scan(scan(2.0))
+    with pytest.raises(Dropped, match="stamped zero"):
+        f.add_scan(scan(0.0))
+    with pytest.raises(Dropped, match="NaN"):
+        f.add_odom(1.1, np.array([np.nan, 0, 0]))
+
+
+def test_kidnap_is_not_integrated():
+    f = front()
+    f.add_odom(1.0, np.zeros(3))
+    f.add_scan(scan(1.0))
+    f.add_odom(1.1, np.array([10.0, 0.0, 0.0]))   # 100 m/s
+    f.add_odom(1.2, np.array([10.1, 0.0, 0.0]))
+    f.add_scan(scan(1.2))
+    assert "kidnap" in f.events[0]
+    np.testing.assert_allclose(f.slam.poses[:, 0], 0.0, atol=1e-12)  # the 10 m jump is not applied
+
+
+def test_slow_sparse_odometry_is_not_a_kidnap():
+    f = front()
+    f.add_odom(1.0, np.zeros(3))
+    f.add_scan(scan(1.0))
+    f.add_odom(3.0, np.array([1.2, 0.0, 0.0]))    # 0.6 m/s over 2 s, like the Intel log
+    f.add_scan(scan(3.0))
+    assert f.events == []
+    np.testing.assert_allclose(f.slam.poses[:, 0], 1.2)
+
+
+def test_time_going_backwards_resets():
+    f = front()
+    for t in (1.0, 2.0):
+        f.add_odom(t, np.array([t, 0.0, 0.0]))
+        f.add_scan(scan(t))
+    assert f.slam.updates == 2
+    f.add_odom(0.5, np.array([0.0, 0.0, 0.0]))      # older than the buffer: ignored
+    with pytest.raises(Dropped):
+        f.add_scan(scan(0.5))                       # reset, then no odometry yet
+    assert "time went backwards" in f.events[0] and f.slam.updates == 0
+    f.add_odom(0.5, np.zeros(3))
+    assert f.add_scan(scan(0.5)).processed
+
+
+@pytest.mark.parametrize("args, problem", [
+    ((0, 0.0, 0.1, 0.1, 3.0), "empty scan"),
+    ((10, 0.0, 0.0, 0.1, 3.0), "angle_increment is 0"),
+    ((10, 0.0, float("nan"), 0.1, 3.0), "angle_increment is nan"),
+    ((10, 0.0, 0.1, 0.1, 0.0), "range_max=0.0 must exceed"),
+    ((10, 0.0, 0.1, 2.0, 1.0), "range_max=1.0 must exceed range_min=2.0"),
+    ((10, 0.0, 0.1, 0.1, 3.0, 2.0), "10 ranges but its angles imply 21"),
+])
+def test_laser_problems(args, problem):
+    assert problem in laser_problem(*args)
+
+
+def test_fence_post_and_reversed_scans_are_fine():
+    assert laser_problem(360, 0.0, 2 * np.pi / 360, 0.12, 3.5, 2 * np.pi) is None
+    assert laser_problem(360, 0.0, -np.pi / 180, 0.12, 3.5, -np.pi / 180 * 359) is None

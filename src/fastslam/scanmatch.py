@@ -86,8 +86,8 @@ def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: flo
     x, y = _world(cand, local)                                            # (N, A, M)
     # Cells near the edge are clamped so every shifted cell stays inside: end points
     # there are at most k cells off, in a part of the window nothing was seen in.
-    cx = np.clip(np.floor((x - origin[0]) / cell).astype(np.int64), k, wv - 1 - k)
-    cy = np.clip(np.floor((y - origin[1]) / cell).astype(np.int64), k, hv - 1 - k)
+    cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
+    cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
     flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx
     d = np.arange(-k, k + 1)
     shifts = (d[:, None] * wv + d[None, :]).reshape(-1)                   # (T,)
@@ -141,10 +141,10 @@ def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cel
     x, y = _world(cand, local)                                            # (N, C, M)
     u = (x - origin[0]) / cell - 0.5
     v = (y - origin[1]) / cell - 0.5
-    i0 = np.clip(np.floor(u), 0, w - 2)
-    j0 = np.clip(np.floor(v), 0, h - 2)
-    fu = np.clip(u - i0, 0.0, 1.0)
-    fv = np.clip(v - j0, 0.0, 1.0)
+    i0 = np.minimum(np.maximum(np.floor(u), 0), w - 2)
+    j0 = np.minimum(np.maximum(np.floor(v), 0), h - 2)
+    fu = np.minimum(np.maximum(u - i0, 0.0), 1.0)
+    fv = np.minimum(np.maximum(v - j0, 0.0), 1.0)
     flat = ((np.arange(n)[:, None, None] * h + j0.astype(np.int64)) * w + i0.astype(np.int64))
     f = logodds.reshape(-1)
 
@@ -160,11 +160,11 @@ def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cel
 def _pool(level: NDArray[np.int8]) -> NDArray[np.int8]:
     """(N, H, W) -> (N, H/2, W/2) maximum over 2x2 cells (H, W even).
 
-    Element-wise maxima of four strided views: much faster than a reduction over
-    small inner axes.
+    Row pairs first, then column pairs of the (contiguous) result: element-wise
+    maxima of strided views, much faster than a reduction over small inner axes.
     """
-    return np.maximum(np.maximum(level[:, 0::2, 0::2], level[:, 0::2, 1::2]),
-                      np.maximum(level[:, 1::2, 0::2], level[:, 1::2, 1::2]))
+    rows = np.maximum(level[:, 0::2, :], level[:, 1::2, :])
+    return np.maximum(rows[:, :, 0::2], rows[:, :, 1::2])
 
 
 def _window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:

@@ -1,0 +1,125 @@
+"""Accuracy benchmark on the Intel Research Lab log: improved mode vs the assignment.
+
+The log's poses are the corrected trajectory; the filter gets odometry re-integrated
+from them with the noise model of :mod:`fastslam.io.odom_noise` (level 1, seeded) and
+every FLASER scan. For each configuration and seed it prints ATE (after the best
+rigid 2D alignment) and RPE (consecutive processed scans) of the best particle's
+trajectory, wall time, milliseconds per processed scan and the peak memory of the
+process (each case runs in its own interpreter), plus a dead-reckoning row.
+
+    python -m fastslam.bench_accuracy [--log LOG] [--seeds 0 1 2] [--level 1.0]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .config import SlamConfig
+from .geometry import relative
+from .io.carmen import read_log
+from .io.odom_noise import noisy_odometry
+from .scan import Scan
+from .slam import FastSlam
+from .trajectory_metrics import ate, rpe
+
+ROOT = Path(__file__).resolve().parents[2]
+INTEL_LOG = Path("/work/shared/data/intel-corrected.log.gz")
+CONFIGS = {"improved": ROOT / "config" / "real.yaml", "assignment": ROOT / "config" / "slam.yaml"}
+PARTICLES = {"improved": 30, "assignment": None}  # None: as the file says
+
+
+def intel_case(name: str, seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG,
+               limit: int | None = None) -> dict:
+    """Runs one configuration on the log in this process and returns its figures."""
+    log = read_log(log_path, limit=limit)
+    truth = np.array([s.robot_pose for s in log.scans])
+    stamps = np.array([s.t for s in log.scans])
+    odom = noisy_odometry(truth, level, np.random.default_rng(seed))
+    overrides: dict = {"seed": seed}
+    if PARTICLES.get(name):
+        overrides["particles"] = PARTICLES[name]
+    cfg = SlamConfig.from_yaml(CONFIGS[name], overrides)
+    slam = FastSlam(cfg)
+    processed = 0
+    start = time.perf_counter()
+    for rec, pose in zip(log.scans, odom):
+        mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
+        scan = Scan.from_laser(rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment,
+                               0.0, rec.max_range, mount=mount, stamp=rec.t)
+        processed += slam.step(pose, scan).processed
+    wall = time.perf_counter() - start
+    est = slam.trajectory()
+    ref = truth[np.searchsorted(stamps, est[:, 0])]
+    rpe_t, rpe_r = rpe(ref, est[:, 1:])
+    return {"config": name, "seed": seed, "particles": cfg.particles, "ate_m": ate(ref, est[:, 1:]),
+            "rpe_m": rpe_t, "rpe_deg": rpe_r, "wall_s": wall, "ms_per_scan": 1000 * wall / max(processed, 1),
+            "processed": processed, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def dead_reckoning(seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG) -> dict:
+    """The odometry alone as an estimate."""
+    log = read_log(log_path)
+    truth = np.array([s.robot_pose for s in log.scans])
+    odom = noisy_odometry(truth, level, np.random.default_rng(seed))
+    rpe_t, rpe_r = rpe(truth, odom)
+    nan = float("nan")
+    return {"config": "dead reckoning", "seed": seed, "particles": 0, "ate_m": ate(truth, odom),
+            "rpe_m": rpe_t, "rpe_deg": rpe_r, "wall_s": nan, "ms_per_scan": nan, "processed": len(truth),
+            "peak_mb": nan}
+
+
+def _row(r: dict) -> str:
+    return (f"{r['config']:<15} {r['seed']:>4} {r['particles']:>3} {r['ate_m']:>7.3f} {r['rpe_m']:>7.3f} "
+            f"{r['rpe_deg']:>7.2f} {r['wall_s']:>7.1f} {r['ms_per_scan']:>7.1f} {r['peak_mb']:>7.0f}")
+
+
+def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
+                configs: tuple[str, ...] = ("improved", "assignment")) -> list[dict]:
+    """Every configuration and seed in a fresh interpreter (one at a time); prints a table."""
+    if not INTEL_LOG.exists():
+        print(f"intel: {INTEL_LOG} not found, skipped")
+        return []
+    print(f"Intel Research Lab, {INTEL_LOG.name}, odometry noise level {level}")
+    print(f"{'config':<15} {'seed':>4} {'N':>3} {'ATE m':>7} {'RPE m':>7} {'RPE deg':>7} "
+          f"{'wall s':>7} {'ms/scan':>7} {'peak MB':>7}")
+    rows = []
+    for name in configs:
+        for seed in seeds:
+            out = subprocess.run([sys.executable, "-m", "fastslam.bench_accuracy", "--case",
+                                  json.dumps([name, seed, level])],
+                                 capture_output=True, text=True, check=True)
+            rows.append(json.loads(out.stdout))
+            print(_row(rows[-1]), flush=True)
+    for seed in seeds:
+        rows.append(dead_reckoning(seed, level=level))
+        print(_row(rows[-1]), flush=True)
+    for name in configs:
+        ates = [r["ate_m"] for r in rows if r["config"] == name]
+        print(f"{name}: median ATE {np.median(ates):.3f} m over seeds {list(seeds)}")
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--level", type=float, default=1.0, help="odometry noise level")
+    parser.add_argument("--configs", nargs="+", default=["improved", "assignment"], choices=sorted(CONFIGS))
+    parser.add_argument("--case", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.case:
+        name, seed, level = json.loads(args.case)
+        print(json.dumps(intel_case(name, seed, level=level)))
+        return 0
+    intel_suite(tuple(args.seeds), args.level, tuple(args.configs))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

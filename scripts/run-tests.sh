@@ -2,6 +2,7 @@
 # Runs every test: pytest (ROS-free core, integration) then each rostest graph test.
 # Ends with one line 'N passed, M failed' and exits non-zero on any failure.
 # Usage: scripts/run-tests.sh [pytest|rostest|all] [extra pytest args...]
+# TEST_OUT=dir chooses the results folder; ROSTESTS="test/ros/a.test ..." runs only those.
 set -o pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$here"
@@ -34,7 +35,7 @@ if [ "$what" = all ] || [ "$what" = rostest ]; then
   # devel/setup.bash reads unset variables: never source it under 'set -u'.
   source "$here/.ws/devel/setup.bash"
   export ROS_HOME="$outdir/ros_home" ROS_LOG_DIR="$outdir/ros_log"
-  for t in test/ros/*.test; do
+  for t in ${ROSTESTS:-test/ros/*.test}; do
     [ -e "$t" ] || continue
     name=$(basename "$t" .test)
     echo "=== rostest $name"

@@ -1,0 +1,97 @@
+"""Scan-matching proposal and end-point distances (improved mode)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fastslam import scanmatch
+from fastslam.bench import room_ranges
+from fastslam.config import SlamConfig
+from fastslam.grid import GridMaps
+from fastslam.scan import Beams, Scan, select_beams
+from fastslam.slam import FastSlam
+
+ANGLES = np.radians(np.arange(360.0))
+
+
+def _scan(pose: np.ndarray) -> Scan:
+    return Scan(ranges=room_ranges(pose, ANGLES), angles=ANGLES, range_min=0.12, range_max=3.5)
+
+
+def _mapped(particles: int = 3) -> tuple[FastSlam, np.ndarray]:
+    """A filter whose maps were built with exact odometry in the bench's room (5 m square + pillar)."""
+    cfg = SlamConfig(particles=particles, seed=0, toggle_noise=0, proposal="odometry", max_range=3.5,
+                     motion_model="odometry",
+                     match_sigma_xy=0.0, match_sigma_theta=0.0, match_xy_range=0.3, match_theta_range=0.15)
+    slam = FastSlam(cfg)
+    pose = np.zeros(3)
+    for i in range(8):
+        pose = np.array([-0.3 + 0.05 * i, 0.1 * np.sin(i), 0.1 * i])
+        slam.step(pose, _scan(pose))
+    return slam, pose
+
+
+def test_matcher_recovers_a_known_offset():
+    slam, _ = _mapped()
+    truth = np.array([0.2, -0.3, 0.4])
+    beams = select_beams(_scan(truth), slam.cfg)
+    offsets = np.array([[0.2, 0.0, np.radians(5)], [-0.15, 0.12, -np.radians(5)], [0.0, 0.0, 0.0]])
+    slam.poses = truth + offsets
+    trusted = scanmatch.refine_poses(slam, beams)
+    assert trusted.all()
+    err = slam.poses - truth
+    assert np.abs(err[:, :2]).max() < 0.03          # within about half a cell (0.05 m)
+    assert np.abs(err[:, 2]).max() < np.radians(1.5)  # the map itself is only so sharp
+
+
+def test_matcher_falls_back_on_an_empty_map():
+    cfg = SlamConfig(particles=4, seed=0, proposal="scan_match")
+    slam = FastSlam(cfg)
+    slam.poses = np.array([[0.1, 0.0, 0.0]] * 4)
+    before = slam.poses.copy()
+    trusted = scanmatch.refine_poses(slam, select_beams(_scan(np.zeros(3)), cfg))
+    assert not trusted.any()
+    np.testing.assert_array_equal(slam.poses, before)
+
+
+def test_matcher_falls_back_without_returns():
+    slam, pose = _mapped()
+    scan = Scan(ranges=np.full(360, np.inf), angles=ANGLES, range_min=0.12, range_max=3.5)
+    before = slam.poses.copy()
+    assert not scanmatch.refine_poses(slam, select_beams(scan, slam.cfg)).any()
+    np.testing.assert_array_equal(slam.poses, before)
+
+
+def _one_wall_grid() -> GridMaps:
+    grid = GridMaps(2, (40, 40), 0.05, (-1.0, -1.0))
+    grid.logodds[:, :, 30] = 50     # a wall of occupied cells, centres at x = 0.525
+    grid.logodds[1] = 0             # particle 1 has seen nothing
+    return grid
+
+
+def test_endpoint_distances_are_distances_to_the_nearest_occupied_cell_centre():
+    grid = _one_wall_grid()
+    beams = Beams(angles=np.array([0.0, 0.0, np.pi / 2]), ranges=np.array([0.425, 0.525, np.inf]),
+                  hit=np.array([True, True, False]), free_range=np.array([0.425, 0.525, 0.0]), range_min=0.1)
+    poses = np.array([[0.0, 0.025, 0.0], [0.0, 0.025, 0.0]])
+    d = scanmatch.endpoint_distances(grid, poses, beams, max_dist=0.3)
+    assert d.shape == (2, 3)
+    assert d[0, 0] == pytest.approx(0.1, abs=1e-9)
+    assert d[0, 1] == pytest.approx(0.0, abs=1e-9)
+    assert d[0, 2] == 0.3                            # no return: the cap, left out by the weight
+    np.testing.assert_array_equal(d[1], [0.3, 0.3, 0.3])  # empty map: every end point capped
+
+
+def test_endpoint_distances_cap_far_walls():
+    grid = _one_wall_grid()
+    beams = Beams(angles=np.array([0.0]), ranges=np.array([0.1]), hit=np.array([True]),
+                  free_range=np.array([0.1]), range_min=0.05)
+    d = scanmatch.endpoint_distances(grid, np.array([[0.0, 0.025, 0.0]] * 2), beams, max_dist=0.15)
+    np.testing.assert_array_equal(d, [[0.15], [0.15]])
+
+
+def test_pool_is_the_maximum_over_two_by_two_cells():
+    rng = np.random.default_rng(0)
+    a = rng.integers(-100, 100, (2, 6, 8), dtype=np.int8)
+    expect = a.reshape(2, 3, 2, 4, 2).max(axis=(2, 4))
+    np.testing.assert_array_equal(scanmatch._pool(a), expect)

@@ -133,6 +133,7 @@ def main() -> None:
     rospy.init_node("run_report")
     out = FilePath(os.path.expanduser(rospy.get_param("~out", "out/demo"))).absolute()
     world_file = rospy.get_param("~world_file")
+    print("waiting for the simulator's route; progress every 5 s", flush=True)
     settle = float(rospy.get_param("~settle", 10.0))
     rec = RunRecorder()
     last = 0.0

@@ -39,6 +39,7 @@ class SlamNode:
         self.map_to_odom = np.zeros(3)
         self.mounts: dict[str, tuple[tuple[float, float, float], bool]] = {}
         self.last_map_stamp = -np.inf
+        self.last_tf_time = rospy.Time(0)
         self.updates = 0
         self.dropped: dict[str, int] = {}
         self.update_ms: list[float] = []
@@ -187,8 +188,9 @@ class SlamNode:
 
     def on_tf_timer(self, _event) -> None:
         now = rospy.Time.now()
-        if now.is_zero():
-            return  # sim time not started: never publish a transform stamped 0
+        if now.is_zero() or now == self.last_tf_time:
+            return  # sim time not started, or not moved on: no stamp 0, no repeated stamp
+        self.last_tf_time = now
         with self.lock:
             x, y, yaw = self.map_to_odom
         t = TransformStamped()

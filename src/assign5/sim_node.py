@@ -49,8 +49,9 @@ def resolve_route(route: str, worlds_dir: Path) -> np.ndarray | None:
         return None
     if route.startswith(("[", "{")):
         return load_route(route)
-    for cand in (Path(route).expanduser(), worlds_dir / route, worlds_dir / f"{route}.yaml",
-                 worlds_dir / f"{route}.route.yaml"):
+    # a world's name means its route file, not the world file of the same name
+    for cand in (Path(route).expanduser(), worlds_dir / f"{route}.route.yaml", worlds_dir / route,
+                 worlds_dir / f"{route}.yaml"):
         if cand.is_file():
             return load_route(str(cand))
     raise WorldError(f"route '{route}' is neither a file, nor inline YAML, nor in {worlds_dir}")

@@ -75,7 +75,7 @@ class SlamConfig:
     # Proposal (improved mode)
     proposal: str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
     match_min_score: float = _num(0.5, 0.0, 1.0, "scan-match score (fraction of beams on the map) needed to trust it")
-    match_min_known: int = _num(100, 0, 10**9, "known cells a particle's map needs near the robot before matching")
+    match_min_known: int = _num(100, 0, 10**9, "occupied 4x4-cell blocks a particle's map needs within scan reach before matching")
     match_beams: int = _num(60, 4, 10000, "scan-match with at most this many returns, evenly spread")
     match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")

@@ -40,6 +40,7 @@ class SlamNode:
         self.mounts: dict[str, tuple[tuple[float, float, float], bool]] = {}
         self.last_map_stamp = -np.inf
         self.last_tf_time = rospy.Time(0)
+        self.warned_clip = False
         self.updates = 0
         self.dropped: dict[str, int] = {}
         self.update_ms: list[float] = []
@@ -100,6 +101,10 @@ class SlamNode:
                 self._log_events()
             if not info.processed:
                 return
+            if info.clipped and not self.warned_clip:
+                self.warned_clip = True
+                rospy.logwarn("the robot is near the map's edge and map_grow is false: beams past the "
+                              "edge are clipped from now on (warned once)")
             best = self.slam.poses[self.slam.best]
             self.map_to_odom = compose(best, inverse(self.front.last_odom))
             self.updates += 1

@@ -18,6 +18,7 @@ import tf2_ros
 from geometry_msgs.msg import PoseArray, TransformStamped
 from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import LaserScan
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
@@ -189,6 +190,54 @@ class Robustness(unittest.TestCase):
             self.assertNotEqual(proc.returncode, 0, arg)
             self.assertIn(message, proc.stdout + proc.stderr, arg)
             rospy.delete_param("/bad_slam")
+
+    def spawn_slam(self, name, *params):
+        """A second slam.py on the same topics; returns once it has processed a scan."""
+        import subprocess
+
+        proc = subprocess.Popen(["rosrun", "assign5", "slam.py", f"__name:={name}", "_particles:=2", *params],
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        got = []
+        sub = rospy.Subscriber(f"{name}/neff", Float64, got.append)
+        deadline = time.time() + 30
+        while not got and time.time() < deadline:
+            self.good_step()
+        sub.unregister()
+        self.assertTrue(got, f"{name} never updated")
+        return proc
+
+    def test_10_map_is_saved_on_sigterm_and_sigint(self):
+        import signal
+        import tempfile
+
+        folder = tempfile.mkdtemp()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            stem = os.path.join(folder, f"exit_{int(sig)}")
+            proc = self.spawn_slam("exit_slam", "_save_on_exit:=true", f"_map_file:={stem}")
+            proc.send_signal(sig)
+            out, _ = proc.communicate(timeout=30)
+            self.assertTrue(os.path.exists(stem + ".yaml") and os.path.exists(stem + ".pgm"), out)
+            rospy.delete_param("/exit_slam")
+
+    def test_11_a_failed_save_is_reported_and_the_old_file_kept(self):
+        import tempfile
+
+        folder = tempfile.mkdtemp()
+        blocker = os.path.join(folder, "not_a_folder")
+        with open(blocker, "w") as f:
+            f.write("a file where the map's folder should be")
+        proc = self.spawn_slam("save_slam", f"_map_file:={blocker}/map")
+        try:
+            rospy.wait_for_service("save_slam/save_map", 10)
+            res = rospy.ServiceProxy("save_slam/save_map", Trigger)()
+            self.assertFalse(res.success)
+            self.assertIn("not_a_folder", res.message)
+            with open(blocker) as f:
+                self.assertEqual(f.read(), "a file where the map's folder should be")
+        finally:
+            proc.terminate()
+            proc.communicate(timeout=30)
+            rospy.delete_param("/save_slam")
 
     def path_end(self):
         deadline = time.time() + 5

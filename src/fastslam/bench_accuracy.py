@@ -35,30 +35,36 @@ CONFIGS = {"improved": ROOT / "config" / "real.yaml", "assignment": ROOT / "conf
 PARTICLES = {"improved": 30, "assignment": None}  # None: as the file says
 
 
+def intel_run(cfg: SlamConfig, seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG,
+              limit: int | None = None) -> tuple[FastSlam, np.ndarray, np.ndarray, float, int]:
+    """Runs cfg on the log; returns the filter, the matched reference (T, 3) and the
+    estimate (T, 3) of the best particle, the wall time [s] and the scans processed."""
+    log = read_log(log_path, limit=limit)
+    truth = np.array([s.robot_pose for s in log.scans])
+    odom = noisy_odometry(truth, level, np.random.default_rng(seed))
+    slam = FastSlam(cfg)
+    done: list[int] = []  # the log's stamps go backwards in places: match by index, not time
+    start = time.perf_counter()
+    for i, (rec, pose) in enumerate(zip(log.scans, odom)):
+        mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
+        scan = Scan.from_laser(rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment,
+                               0.0, rec.max_range, mount=mount, stamp=rec.t)
+        if slam.step(pose, scan).processed:
+            done.append(i)
+    wall = time.perf_counter() - start
+    return slam, truth[done], slam.trajectory()[:, 1:], wall, len(done)
+
+
 def intel_case(name: str, seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG,
                limit: int | None = None) -> dict:
     """Runs one configuration on the log in this process and returns its figures."""
-    log = read_log(log_path, limit=limit)
-    truth = np.array([s.robot_pose for s in log.scans])
-    stamps = np.array([s.t for s in log.scans])
-    odom = noisy_odometry(truth, level, np.random.default_rng(seed))
     overrides: dict = {"seed": seed}
     if PARTICLES.get(name):
         overrides["particles"] = PARTICLES[name]
     cfg = SlamConfig.from_yaml(CONFIGS[name], overrides)
-    slam = FastSlam(cfg)
-    processed = 0
-    start = time.perf_counter()
-    for rec, pose in zip(log.scans, odom):
-        mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
-        scan = Scan.from_laser(rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment,
-                               0.0, rec.max_range, mount=mount, stamp=rec.t)
-        processed += slam.step(pose, scan).processed
-    wall = time.perf_counter() - start
-    est = slam.trajectory()
-    ref = truth[np.searchsorted(stamps, est[:, 0])]
-    rpe_t, rpe_r = rpe(ref, est[:, 1:])
-    return {"config": name, "seed": seed, "particles": cfg.particles, "ate_m": ate(ref, est[:, 1:]),
+    _, ref, est, wall, processed = intel_run(cfg, seed, level=level, log_path=log_path, limit=limit)
+    rpe_t, rpe_r = rpe(ref, est)
+    return {"config": name, "seed": seed, "particles": cfg.particles, "ate_m": ate(ref, est),
             "rpe_m": rpe_t, "rpe_deg": rpe_r, "wall_s": wall, "ms_per_scan": 1000 * wall / max(processed, 1),
             "processed": processed, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 

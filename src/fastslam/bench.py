@@ -1,10 +1,13 @@
-"""`make bench`: speed and memory of one full filter step, on synthetic scans.
+"""`make bench`: speed, memory and accuracy figures (recorded in docs/benchmarks.md).
 
-For N in {20, 50, 100} and beams in {60, 360}, on a 10 m and a 40 m square map at
-0.05 m, it prints the median milliseconds per step and the peak memory of a fresh
-process (the maps dominate it). Each case runs in its own interpreter so peak RSS
-belongs to that case alone. Other suites (datasets, accuracy) are added by name:
-`python -m fastslam.bench [speed] [...]`.
+    python -m fastslam.bench [speed] [intel] [office] [longrun]    (default: all)
+
+speed: for N in {20, 50, 100} and beams in {60, 360}, on a 10 m and a 40 m square map
+at 0.05 m, the median milliseconds per full filter step and the peak memory of a fresh
+process (each case in its own interpreter, so peak RSS is that case's alone).
+intel, office: accuracy of the improved mode vs the assignment (fastslam.bench_accuracy).
+longrun: a 30-minute simulated run (office loop, faster than real time) with memory
+and time per update sampled every 5 minutes of simulated time.
 """
 from __future__ import annotations
 
@@ -89,9 +92,59 @@ def speed_suite() -> list[dict]:
     return rows
 
 
+def current_rss_mb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * resource.getpagesize() / 2**20
+
+
+def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> list[dict]:
+    """Drives the office loop again and again for `minutes` of simulated time."""
+    from pathlib import Path
+
+    from .scan import Scan as ScanT
+    from .sim.route import load_route
+    from .sim.sim import SimConfig, Simulation
+    from .sim.world import load_world
+
+    root = Path(__file__).resolve().parents[2]
+    world = load_world(root / "worlds" / "office.yaml")
+    loop = load_route(root / "worlds" / "office.route.yaml")
+    route = np.concatenate([loop] * 20)
+    sim_cfg = SimConfig(seed=0)
+    sim = Simulation(world, sim_cfg, np.random.default_rng(0), route=route)
+    slam = FastSlam(SlamConfig.from_yaml(root / config, {"seed": 0}))
+    angles = sim.lidar.angles
+    rows, window, next_mark = [], [], 300.0
+    start = time.perf_counter()
+    print(f"{'sim min':>7} {'updates':>7} {'ms/update':>9} {'p95':>6} {'RSS MB':>7} {'maps MB':>8} {'grid':>9}")
+    while sim.time < minutes * 60:
+        tick = sim.step()
+        if tick.scan is not None:
+            scan = ScanT.from_laser(tick.scan.astype(np.float32), float(angles[0]), float(angles[1] - angles[0]),
+                                    sim_cfg.range_min, sim_cfg.range_max, mount=(sim_cfg.laser_x, 0.0, 0.0),
+                                    stamp=tick.t)
+            info = slam.step(sim.odom.pose.copy(), scan)
+            window.append(info.seconds)
+        if sim.time >= next_mark:
+            next_mark += 300.0
+            h, w = slam.grid.shape
+            row = {"sim_min": round(sim.time / 60), "updates": slam.updates,
+                   "ms_median": 1000 * float(np.median(window)), "ms_p95": 1000 * float(np.percentile(window, 95)),
+                   "rss_mb": current_rss_mb(), "maps_mb": slam.grid.logodds.nbytes / 2**20, "grid": f"{h}x{w}"}
+            rows.append(row)
+            window = []
+            print(f"{row['sim_min']:>7} {row['updates']:>7} {row['ms_median']:>9.1f} {row['ms_p95']:>6.1f} "
+                  f"{row['rss_mb']:>7.1f} {row['maps_mb']:>8.1f} {row['grid']:>9}", flush=True)
+        if tick.route_finished:
+            break
+    print(f"{minutes:.0f} simulated minutes in {time.perf_counter() - start:.0f} s wall")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("suites", nargs="*", default=["speed"], help="speed (default)")
+    parser.add_argument("suites", nargs="*", default=["speed", "intel", "office", "longrun"],
+                        help="speed, intel, office, longrun (default: all)")
     parser.add_argument("--case", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.case:
@@ -99,8 +152,19 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(speed_case(n, beams, size)))
         return 0
     for suite in args.suites:
+        print(f"== {suite}", flush=True)
         if suite == "speed":
             speed_suite()
+        elif suite == "intel":
+            from .bench_accuracy import intel_suite
+
+            intel_suite()
+        elif suite == "office":
+            from .bench_accuracy import office_suite
+
+            office_suite()
+        elif suite == "longrun":
+            longrun_suite()
         else:
             parser.error(f"unknown suite {suite!r}")
     return 0

@@ -23,6 +23,9 @@ from .scan import Beams, Scan, select_beams
 from .weights import assignment_log_weights, likelihood_log_weights, normalise_log
 
 
+PRUNE_EVERY = 256  # updates between prunings of the trajectory history
+
+
 @dataclass(frozen=True)
 class StepInfo:
     """What one call of FastSlam.step did."""
@@ -193,6 +196,27 @@ class FastSlam:
     def _record(self, stamp: float) -> None:
         self._hist_poses.append(self.poses.copy())
         self._hist_stamps.append(float(stamp))
+        if len(self._hist_poses) % PRUNE_EVERY == 0:
+            self._prune_history()
+
+    def _prune_history(self) -> None:
+        """Drops history no living particle descends from (gmapping prunes its tree too).
+
+        Lineages merge within a few resamplings, so what is left is about one path:
+        memory then grows by one pose per update instead of N.
+        """
+        keep = np.arange(len(self.poses))  # rows of step t that living particles descend from
+        for t in range(len(self._hist_poses) - 1, -1, -1):
+            rows = np.unique(keep)
+            new_row = np.full(len(self._hist_poses[t]), -1, dtype=np.intp)
+            new_row[rows] = np.arange(len(rows))
+            if t + 1 < len(self._hist_parent):
+                self._hist_parent[t + 1] = new_row[self._hist_parent[t + 1]]
+            if len(self._hist_poses[t]) == 1:
+                break  # a single lineage already: an earlier pruning compacted all before it
+            keep = self._hist_parent[t][rows]
+            self._hist_poses[t] = self._hist_poses[t][rows]
+            self._hist_parent[t] = keep
 
     # -- results ---------------------------------------------------------------------
     def trajectory(self, particle: int | None = None) -> NDArray[np.float64]:

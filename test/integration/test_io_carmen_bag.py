@@ -18,7 +18,8 @@ from fastslam.trajectory_metrics import ate
 
 pytest.importorskip("rosbags")
 
-INTEL = Path("/work/shared/data/intel-corrected.log.gz")
+# shared/ lies beside the repository (CI clones main next to it)
+INTEL = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "intel-corrected.log.gz"
 N = 50
 needs_intel = pytest.mark.skipif(not INTEL.is_file(), reason="Intel log not available")
 

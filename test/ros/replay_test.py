@@ -38,7 +38,7 @@ class Replay(unittest.TestCase):
 
         paths = []
         rospy.Subscriber("slam/trajectory", Path, paths.append)
-        play = subprocess.run(["rosbag", "play", "--clock", "-q", "-d", "1", "-r", "1.5", bag],
+        play = subprocess.run(["rosbag", "play", "--clock", "-q", "-d", "1", "-r", "1.0", bag],
                               capture_output=True, text=True, timeout=300)
         self.assertEqual(play.returncode, 0, play.stderr)
         time.sleep(1.0)

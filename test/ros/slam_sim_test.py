@@ -17,6 +17,7 @@ import tf2_ros
 from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 from nav_msgs.srv import GetMap
+from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -34,8 +35,14 @@ class SlamOnSimulator(unittest.TestCase):
         rospy.init_node("slam_sim_test")
         cls.recorder = RunRecorder()
         cls.particles = rospy.get_param("/slam/particles")
+        cls.scans = 0
+        rospy.Subscriber("scan", LaserScan, cls._count_scan, queue_size=50)
         cls.tf = tf2_ros.Buffer()
         cls.tf_listener = tf2_ros.TransformListener(cls.tf)
+
+    @classmethod
+    def _count_scan(cls, _msg):
+        cls.scans += 1
 
     def test_1_particles_pose_and_neff(self):
         msg = wait_message("particles", PoseArray)
@@ -98,6 +105,8 @@ class SlamOnSimulator(unittest.TestCase):
         self.assertGreaterEqual(metrics["boundary_recall"], rospy.get_param("~min_recall", 0.90))
         self.assertLessEqual(metrics["spurious_fraction"], rospy.get_param("~max_spurious", 0.05))
         self.assertGreater(metrics["processed_scans"], 300)
+        # keeping up: (nearly) every scan of the run became an update, none fell behind
+        self.assertGreaterEqual(len(ms), 0.95 * self.scans - 3, f"{len(ms)} updates for {self.scans} scans")
 
 
 if __name__ == "__main__":

@@ -7,47 +7,25 @@ four per pixel.
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from fastslam.io import mapfile
+from fastslam.io.mapfile import MapLoadError
 from fastslam.sim.world import World, WorldError
 
-_TOKEN = re.compile(rb"(#[^\n]*\n|\s+)")
+def read_pgm(path: str | Path) -> tuple[NDArray[np.uint8], int]:
+    """Binary P5 PGM -> ((H, W) pixel values, row 0 = top row of the image; maxval 255).
 
-
-def read_pgm(path: str | Path) -> tuple[NDArray[np.uint16], int]:
-    """Binary P5 PGM -> ((H, W) pixel values, row 0 = top row of the image; maxval)."""
+    The map-file reader parses it; here its errors become WorldErrors.
+    """
     try:
-        raw = Path(path).read_bytes()
-    except OSError as err:
-        raise WorldError(f"image: cannot read {path}: {err.strerror}") from None
-    if raw[:2] != b"P5":
-        raise WorldError(f"image: {path} is not a binary (P5) PGM")
-    fields, pos = [], 2
-    while len(fields) < 3:            # width, height, maxval, separated by blanks and comments
-        m = _TOKEN.match(raw, pos)
-        if m:
-            pos = m.end()
-            continue
-        end = pos
-        while end < len(raw) and raw[end:end + 1].isdigit():
-            end += 1
-        if end == pos:
-            raise WorldError(f"image: {path}: malformed PGM header")
-        fields.append(int(raw[pos:end]))
-        pos = end
-    w, h, maxval = fields
-    pos += 1                           # exactly one whitespace byte before the pixels
-    dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
-    need = w * h * dtype.itemsize
-    if len(raw) - pos < need:
-        raise WorldError(f"image: {path}: {len(raw) - pos} bytes of pixels, expected {need}")
-    pixels = np.frombuffer(raw, dtype=dtype, count=w * h, offset=pos).reshape(h, w).astype(np.uint16)
-    return pixels, maxval
+        return mapfile.read_pgm(path), 255
+    except (MapLoadError, OSError) as err:
+        raise WorldError(f"image: {err}") from None
 
 
 def occupied_mask(pixels: NDArray[Any], *, negate: bool, occupied_thresh: float, maxval: int = 255) -> NDArray[np.bool_]:

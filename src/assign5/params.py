@@ -6,15 +6,12 @@ config/node.yaml there); keys that name neither are an error, like a bad value.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from fastslam.config import ConfigError, SlamConfig
-
-
-def _num(default: float, lo: float, hi: float, doc: str) -> Any:
-    return field(default=default, metadata={"range": (lo, hi), "doc": doc})
+from fastslam.config import SlamConfig
+from fastslam.fields import ConfigError, check_fields, coerce
+from fastslam.fields import num as _num
 
 
 @dataclass(frozen=True)
@@ -41,13 +38,10 @@ class NodeConfig:
     queue_size: int = _num(1, 1, 100, "scan subscriber queue; 1 drops scans the node cannot keep up with")
 
     def __post_init__(self) -> None:
+        check_fields(self)
         for f in dataclasses.fields(self):
-            lo_hi = f.metadata.get("range")
-            v = getattr(self, f.name)
-            if lo_hi and not (isinstance(v, (int, float)) and math.isfinite(v) and lo_hi[0] <= v <= lo_hi[1]):
-                raise ConfigError(f"{f.name}={v!r} must be in [{lo_hi[0]}, {lo_hi[1]}]")
-            if f.type == "str" and not (isinstance(v, str) and v):
-                raise ConfigError(f"{f.name}={v!r} must be a non-empty string")
+            if f.type == "str" and not getattr(self, f.name):
+                raise ConfigError(f"{f.name}='' must be a non-empty string")
 
 
 NODE_KEYS = {f.name for f in dataclasses.fields(NodeConfig)}
@@ -59,16 +53,7 @@ def split_params(params: Mapping[str, Any]) -> tuple[NodeConfig, SlamConfig]:
     unknown = sorted(set(params) - NODE_KEYS - CORE_KEYS)
     if unknown:
         raise ConfigError(f"unknown parameter '{unknown[0]}'")
-    node_values = {k: v for k, v in params.items() if k in NODE_KEYS}
-    kinds = {f.name: f.type for f in dataclasses.fields(NodeConfig)}
-    for k, v in node_values.items():
-        if kinds[k] == "float" and isinstance(v, int) and not isinstance(v, bool):
-            node_values[k] = float(v)
-        elif kinds[k] == "bool" and not isinstance(v, bool):
-            raise ConfigError(f"{k}={v!r} must be true or false")
-        elif kinds[k] == "int" and (isinstance(v, bool) or not isinstance(v, int)):
-            raise ConfigError(f"{k}={v!r} must be an integer")
-    node = NodeConfig(**node_values)
+    node = NodeConfig(**coerce(NodeConfig, {k: v for k, v in params.items() if k in NODE_KEYS}))
     core = SlamConfig.from_dict({k: v for k, v in params.items() if k in CORE_KEYS})
     return node, core
 

@@ -16,17 +16,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .fields import ConfigError, check_fields, coerce
+from .fields import choice as _choice
+from .fields import num as _num
 
-class ConfigError(ValueError):
-    """A parameter is unknown, of the wrong type or out of its allowed range."""
-
-
-def _num(default: float, lo: float, hi: float, doc: str) -> Any:
-    return field(default=default, metadata={"range": (lo, hi), "doc": doc})
-
-
-def _choice(default: str, choices: tuple[str, ...], doc: str) -> Any:
-    return field(default=default, metadata={"choices": choices, "doc": doc})
+__all__ = ["ConfigError", "SlamConfig", "parse_override"]
 
 
 @dataclass(frozen=True)
@@ -41,6 +35,7 @@ class SlamConfig:
     map_width: float = _num(10.0, 0.5, 2000.0, "initial map extent along x [m]")
     map_height: float = _num(10.0, 0.5, 2000.0, "initial map extent along y [m]")
     map_grow: bool = field(default=True, metadata={"doc": "grow the grid when the robot nears its edge"})
+    map_grow_fraction: float = _num(0.5, 0.0, 10.0, "a side of the grid that grows adds at least this share of its size")
     init_sigma_xy: float = _num(0.0, 0.0, 10.0, "spread of the initial particle positions [m]")
     init_sigma_theta: float = _num(0.0, 0.0, math.pi, "spread of the initial headings [rad]")
     # Motion (assignment 3.2)
@@ -87,8 +82,7 @@ class SlamConfig:
     temporal_update: float = _num(-1.0, -1.0, 3600.0, "... or this much time; < 0 disables [s]")
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            _check(f, getattr(self, f.name))
+        check_fields(self)
         if self.fov_min >= self.fov_max:
             raise ConfigError(f"fov_min={self.fov_min} must be less than fov_max={self.fov_max}")
         if self.l_min >= self.l_max:
@@ -112,11 +106,7 @@ class SlamConfig:
     @classmethod
     def from_dict(cls, values: Mapping[str, Any]) -> SlamConfig:
         """Build from a flat mapping; unknown keys and bad values raise ConfigError."""
-        known = {f.name: f for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - set(known))
-        if unknown:
-            raise ConfigError(f"unknown parameter '{unknown[0]}' (known: {', '.join(sorted(known))})")
-        return cls(**{k: _coerce(known[k], v) for k, v in values.items()})
+        return cls(**coerce(cls, values))
 
     @classmethod
     def from_yaml(cls, path: str | Path, overrides: Mapping[str, Any] | None = None) -> SlamConfig:
@@ -143,43 +133,3 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not sep or not key:
         raise ConfigError(f"override '{text}' must look like key=value")
     return key.strip(), yaml.safe_load(value)
-
-
-def _coerce(f: dataclasses.Field, value: Any) -> Any:
-    kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
-    try:
-        if value is None and "None" in kind:
-            return None
-        if kind.startswith("bool"):
-            if isinstance(value, bool):
-                return value
-            if value in (0, 1):
-                return bool(value)
-            raise TypeError
-        if kind.startswith("int"):
-            if float(value) != int(value):  # True/False pass as 1/0 (toggle_noise)
-                raise TypeError
-            return int(value)
-        if kind.startswith("float"):
-            if isinstance(value, bool):
-                raise TypeError
-            return float(value)
-        if kind.startswith("str"):
-            if not isinstance(value, str):
-                raise TypeError
-            return value
-    except (TypeError, ValueError, OverflowError):
-        raise ConfigError(f"{f.name}={value!r} must be of type {kind}") from None
-    return value
-
-
-def _check(f: dataclasses.Field, value: Any) -> None:
-    meta = f.metadata
-    if value is None:
-        return
-    if "range" in meta:
-        lo, hi = meta["range"]
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
-            raise ConfigError(f"{f.name}={value!r} must be in [{lo}, {hi}]")
-    if "choices" in meta and value not in meta["choices"]:
-        raise ConfigError(f"{f.name}={value!r} must be one of {', '.join(meta['choices'])}")

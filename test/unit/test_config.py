@@ -20,7 +20,7 @@ def test_yaml_defaults_are_the_assignment(tmp_path):
     ({"map_width": 0.1}, "map_width=0.1 must be in [0.5, 2000.0]"),
     ({"map_width": 0.6, "map_resolution": 0.5}, "map_width=0.6 must be at least 4 cells"),
     ({"map_resolutoin": 0.1}, "unknown parameter 'map_resolutoin'"),
-    ({"particles": 2.5}, "particles=2.5 must be of type int"),
+    ({"particles": 2.5}, "particles=2.5 must be an integer"),
     ({"weight_model": "gauss"}, "weight_model='gauss' must be one of assignment, likelihood"),
     ({"fov_min": 30, "fov_max": -30}, "fov_min=30.0 must be less than fov_max=-30.0"),
     ({"max_range": float("nan")}, "max_range=nan must be in"),

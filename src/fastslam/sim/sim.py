@@ -17,15 +17,14 @@ from typing import Any, Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from fastslam.config import ConfigError
+from fastslam.fields import ConfigError, check_fields, coerce
+from fastslam.fields import num as _num
 from fastslam.sim.lidar import Lidar
 from fastslam.sim.robot import DiffDrive, OdometryModel
 from fastslam.sim.route import RouteFollower
 from fastslam.sim.world import World
 
 
-def _num(default: float, lo: float, hi: float, doc: str) -> Any:
-    return field(default=default, metadata={"range": (lo, hi), "doc": doc})
 
 
 @dataclass(frozen=True)
@@ -63,15 +62,7 @@ class SimConfig:
     route_tolerance: float = _num(0.08, 0.01, 10.0, "waypoint reached within this [m]")
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            lo_hi = f.metadata.get("range")
-            if lo_hi and not (isinstance(v, (int, float)) and not isinstance(v, bool)
-                              and math.isfinite(v) and lo_hi[0] <= v <= lo_hi[1]):
-                raise ConfigError(f"{f.name}={v!r} must be in [{lo_hi[0]}, {lo_hi[1]}]")
-            choices = f.metadata.get("choices")
-            if choices and v not in choices:
-                raise ConfigError(f"{f.name}={v!r} must be one of {', '.join(choices)}")
+        check_fields(self)
         if self.range_min >= self.range_max:
             raise ConfigError(f"range_min={self.range_min} must be below range_max={self.range_max}")
         if self.spawn and (len(self.spawn) != 3 or not all(isinstance(v, (int, float)) for v in self.spawn)):
@@ -80,28 +71,8 @@ class SimConfig:
     @classmethod
     def from_dict(cls, values: Mapping[str, Any]) -> SimConfig:
         """Checks names and types ("unknown parameter 'x'", "speed='a' must be a number")."""
-        kinds = {f.name: f.type for f in dataclasses.fields(cls)}
-        out: dict[str, Any] = {}
-        for k, v in values.items():
-            if k not in kinds:
-                raise ConfigError(f"unknown parameter '{k}'")
-            kind = kinds[k]
-            if kind == "float" and isinstance(v, int) and not isinstance(v, bool):
-                v = float(v)
-            elif kind == "bool" and not isinstance(v, bool):
-                raise ConfigError(f"{k}={v!r} must be true or false")
-            elif kind == "int" and (isinstance(v, bool) or not isinstance(v, int)):
-                if not (isinstance(v, float) and v.is_integer()):
-                    raise ConfigError(f"{k}={v!r} must be an integer")
-                v = int(v)
-            elif kind == "str" and not isinstance(v, str):
-                v = "" if v is None else str(v)
-            elif kind == "float" and not isinstance(v, float):
-                raise ConfigError(f"{k}={v!r} must be a number")
-            elif kind == "list" and not isinstance(v, list):
-                raise ConfigError(f"{k}={v!r} must be a list")
-            out[k] = v
-        return cls(**out)
+        values = {k: ("" if v is None and k in ("world", "route", "worlds_dir") else v) for k, v in values.items()}
+        return cls(**coerce(cls, values))
 
 
 @dataclass

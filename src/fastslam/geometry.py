@@ -43,4 +43,6 @@ def circular_mean(angles: ArrayLike, weights: ArrayLike | None = None) -> float:
 
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
     """Heading (rotation about z) of a quaternion; it need not be normalised."""
-    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+    # w^2 + x^2 - y^2 - z^2 rather than 1 - 2(y^2 + z^2): the same for a unit quaternion,
+    # and scale-free, so a non-normalised one gives the right heading too
+    return float(np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z))

@@ -74,6 +74,15 @@ class SlamOnSimulator(unittest.TestCase):
         self.assertEqual((served.info.width, served.info.height), (late.info.width, late.info.height))
         self.assertEqual(served.header.frame_id, "map")
 
+    def test_2b_debug_maps_of_the_best_particles(self):
+        best = wait_message("map", OccupancyGrid)
+        for i in range(2):
+            m = wait_message(f"slam/particle_map_{i}", OccupancyGrid)
+            self.assertEqual(m.header.frame_id, "map")
+            self.assertEqual((m.info.width, m.info.height), (best.info.width, best.info.height))
+        with self.assertRaises(rospy.ROSException):
+            wait_message("slam/particle_map_2", OccupancyGrid, timeout=1.0)
+
     def test_3_map_to_odom_transform(self):
         t = self.tf.lookup_transform("map", "odom", rospy.Time(0), rospy.Duration(10.0))
         self.assertGreater(t.header.stamp.to_sec(), 0.0)

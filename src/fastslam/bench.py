@@ -64,11 +64,11 @@ def speed_case(particles: int, beams: int, size: float, steps: int = 25) -> dict
 
 
 def baseline_rss_mb() -> float:
-    """Peak RSS of an interpreter that imported the core and did nothing else."""
-    out = subprocess.run([sys.executable, "-c", "import resource, fastslam.slam; "
-                          "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)"],
+    """Peak RSS of an interpreter that loaded the core and ran one step of a
+    one-particle filter on a 1 m map: Python, numpy and the code, but no maps."""
+    out = subprocess.run([sys.executable, "-m", "fastslam.bench", "--case", json.dumps([1, 60, 1.0])],
                          capture_output=True, text=True, check=True)
-    return float(out.stdout)
+    return float(json.loads(out.stdout)["peak_rss_mb"])
 
 
 def speed_suite() -> list[dict]:

@@ -72,6 +72,7 @@ class FastSlam:
         self._hist_poses: list[NDArray[np.float64]] = []
         self._hist_parent: list[NDArray[np.intp]] = []
         self._hist_stamps: list[float] = []
+        self._trunk: list[NDArray[np.float64]] = []  # (k, 4) blocks t, x, y, theta of the one lineage left
 
     def rebase_odometry(self, odom: NDArray) -> None:
         """Takes odom as the new reference without moving the particles (after a jump)."""
@@ -217,6 +218,14 @@ class FastSlam:
             keep = self._hist_parent[t][rows]
             self._hist_poses[t] = self._hist_poses[t][rows]
             self._hist_parent[t] = keep
+        # The steps every living particle shares move into one compact block.
+        shared = next((t for t, rows in enumerate(self._hist_poses) if len(rows) > 1), len(self._hist_poses))
+        shared = min(shared, len(self._hist_poses) - 1)  # the newest step keeps its N slots
+        if shared > 0:
+            block = np.concatenate([np.array(self._hist_stamps[:shared])[:, None],
+                                    np.concatenate(self._hist_poses[:shared])], axis=1)
+            self._trunk.append(block)
+            del self._hist_poses[:shared], self._hist_parent[:shared], self._hist_stamps[:shared]
 
     # -- results ---------------------------------------------------------------------
     def trajectory(self, particle: int | None = None) -> NDArray[np.float64]:
@@ -229,7 +238,7 @@ class FastSlam:
             out[t, 0] = self._hist_stamps[t]
             out[t, 1:] = self._hist_poses[t][j]
             j = int(self._hist_parent[t][j])
-        return out
+        return np.concatenate(self._trunk + [out]) if self._trunk else out
 
     def mean_pose(self) -> NDArray[np.float64]:
         """(3,) weighted mean pose, circular mean for the heading."""

@@ -63,11 +63,13 @@ class GridMaps:
         gx0, gy0, gx1, gy1 = self.extent
         return xmin >= gx0 and ymin >= gy0 and xmax < gx1 and ymax < gy1
 
-    def grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float) -> bool:
+    def grow_to(self, xmin: float, ymin: float, xmax: float, ymax: float, *, fraction: float = 0.5) -> bool:
         """Enlarges every grid so it holds the box, keeping content at its world place.
 
-        Each side that must move grows by at least half the current size, so a robot
-        exploring steadily pays for a copy only a logarithmic number of times.
+        Each side that must move grows by at least `fraction` of the current size (half
+        by default), so a robot exploring steadily pays for a copy only a logarithmic
+        number of times; a smaller fraction keeps the maps (copied at every
+        resampling) closer to the explored area.
         Returns whether anything changed.
         """
         if self.covers(xmin, ymin, xmax, ymax):
@@ -77,7 +79,7 @@ class GridMaps:
         gx0, gy0, gx1, gy1 = self.extent
 
         def need(short: float, size: int) -> int:
-            return 0 if short <= 0 else max(math.ceil(short / r), size // 2)
+            return 0 if short <= 0 else max(math.ceil(short / r), int(size * fraction))
 
         left, right = need(gx0 - xmin, w), need(xmax - gx1 + r, w)
         down, up = need(gy0 - ymin, h), need(ymax - gy1 + r, h)

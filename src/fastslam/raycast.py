@@ -118,7 +118,13 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
         first_step: (n, M) steps before it (the sensor's minimum range) are left alone.
         l_free, l_occ, l_min, l_max: increments and clamps in the grid's int8 units.
     """
-    cells = grid.logodds.reshape(-1)
+    free, hit = _cells_to_update(rays, free_until, hit_step, first_step)
+    _apply(grid, free, hit, l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max)
+
+
+def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
+                     first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer], NDArray[np.integer]]:
+    """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
     k = np.arange(rays.flat.shape[2])
     free_mask = (k < free_until[..., None]) & (k >= first_step[..., None])
     if not rays.inside:
@@ -126,17 +132,50 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
     free = rays.flat[free_mask]
     has_hit = hit_step >= 0
     hit = np.take_along_axis(rays.flat, np.where(has_hit, hit_step, 0)[..., None], axis=2)[..., 0]
-    hit = hit[has_hit & (hit >= 0)]
+    return free, hit[has_hit & (hit >= 0)]
+
+
+def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], *,
+           l_free: int, l_occ: int, l_min: int, l_max: int) -> None:
+    cells = grid.logodds.reshape(-1)
     before = cells[hit].astype(np.int16)  # hit cells take l_occ alone: read them first
     # Assigning through repeated indices writes once: one update per cell per scan.
     cells[free] = np.maximum(cells[free].astype(np.int16) + l_free, l_min)
     cells[hit] = np.clip(before + l_occ, l_min, l_max)
 
 
+def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
+                     ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
+                     max_range: float, range_min: float, groups: int, l_units: dict[str, int]) -> None:
+    """The grid update of observe without expected ranges: beams are traced in groups
+    of similar length, each only as far as its longest beam reaches, not to max_range."""
+    n_p, m = angles.shape
+    reach = np.where(hit, ranges, free_range)
+    order = np.argsort(reach, kind="stable")
+    order = order[reach[order] > 0]                          # beams that clear nothing are skipped
+    if len(order) == 0:
+        return
+    parts = [p for p in np.array_split(order, min(groups, len(order))) if len(p)]
+    k_mean = float(np.mean(reach[order])) / grid.resolution + 2
+    per_chunk = max(1, int(CHUNK_ELEMENTS // (len(order) * k_mean)))
+    for a in range(0, n_p, per_chunk):
+        b = min(n_p, a + per_chunk)
+        free_cells, hit_cells = [], []
+        for sel in parts:
+            r = float(min(reach[sel].max(), max_range)) + grid.resolution
+            rays = trace(grid, origins[a:b], angles[a:b][:, sel], r, first=a)
+            hit_step = np.where(hit[sel], rays.step_of_range(ranges[sel]), -1)
+            until = np.where(hit[sel], hit_step, rays.step_of_range(free_range[sel]) + 1)
+            f, h = _cells_to_update(rays, until, hit_step, rays.first_step_at(range_min))
+            free_cells.append(f)
+            hit_cells.append(h)
+        _apply(grid, np.concatenate(free_cells), np.concatenate(hit_cells), **l_units)
+
+
 def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
             ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
             max_range: float, range_min: float, expected: bool,
-            l_free: int, l_occ: int, l_min: int, l_max: int) -> NDArray[np.float64] | None:
+            l_free: int, l_occ: int, l_min: int, l_max: int, trim_groups: int = 0) -> NDArray[np.float64] | None:
     """Expected scan from each particle's map as it was, then the scan written into it.
 
     Runs over particles in chunks so the (n, M, K) temporaries stay small and in cache.
@@ -146,9 +185,17 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
         ranges: (M,) measured ranges; hit: (M,) beams that end in an obstacle;
         free_range: (M,) distance each beam clears, 0 for none [m].
         expected: whether to compute the expected ranges.
+        trim_groups: without expected ranges, > 0 traces the beams in this many groups
+            of similar length, each group only as far as its longest beam (faster; the
+            cells of a beam's line then depend on its group's length).
     Returns:
         (N, M) expected ranges, or None.
     """
+    if trim_groups > 0 and not expected:
+        _observe_trimmed(grid, origins, angles, ranges, hit, free_range, max_range=max_range,
+                         range_min=range_min, groups=trim_groups,
+                         l_units=dict(l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max))
+        return None
     n_p, m = angles.shape
     k_guess = int(max_range / grid.resolution) + 2
     per_chunk = max(1, CHUNK_ELEMENTS // (m * k_guess))

@@ -22,6 +22,10 @@ from .resample import low_variance_indices, neff, slot_parents
 from .scan import Beams, Scan, select_beams
 from .weights import assignment_log_weights, likelihood_log_weights, normalise_log
 
+# Likelihood weights need no expected ranges, so the map update traces each beam only
+# about as far as it reaches, in this many groups of beams of similar length.
+TRIM_GROUPS = 4
+
 
 PRUNE_EVERY = 256  # updates between prunings of the trajectory history
 
@@ -145,7 +149,7 @@ class FastSlam:
         if self.grid.covers(lo[0], lo[1], hi[0], hi[1]):
             return False, False
         if self.cfg.map_grow:
-            return self.grid.grow_to(lo[0], lo[1], hi[0], hi[1]), False
+            return self.grid.grow_to(lo[0], lo[1], hi[0], hi[1], fraction=self.cfg.map_grow_fraction), False
         return False, True
 
     def _beam_frames(self, beams: Beams) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -167,15 +171,17 @@ class FastSlam:
         weigh = bool(beams.hit.any())  # with no return to compare, weights stay as they are
         log_w = None
         if weigh and cfg.weight_model == "likelihood":
-            from .scanmatch import endpoint_distances
+            from .scanmatch import endpoint_distances, returns_subset
 
-            dist = endpoint_distances(self.grid, self.poses, beams, max_dist=cfg.likelihood_max_dist)
-            log_w = likelihood_log_weights(dist, beams.hit, cfg.likelihood_sigma,
+            sub = returns_subset(beams, cfg.match_beams)  # the matcher's end points
+            dist = endpoint_distances(self.grid, self.poses, sub, max_dist=cfg.likelihood_max_dist)
+            log_w = likelihood_log_weights(dist, sub.hit, cfg.likelihood_sigma,
                                            cfg.likelihood_max_dist, cfg.likelihood_gain)
         origins, angles = self._beam_frames(beams)
         d = raycast.observe(self.grid, origins, angles, beams.ranges, beams.hit, beams.free_range,
                             max_range=cfg.max_range, range_min=beams.range_min,
-                            expected=weigh and cfg.weight_model == "assignment", **self._l_units)
+                            expected=weigh and cfg.weight_model == "assignment", **self._l_units,
+                            trim_groups=TRIM_GROUPS if cfg.weight_model == "likelihood" else 0)
         if d is not None:
             log_w = assignment_log_weights(d, beams.ranges, beams.hit)
         if log_w is not None:

@@ -128,3 +128,13 @@ def test_topic_choice_messages():
     with pytest.raises(BagError, match=r"no sensor_msgs/msg/LaserScan topic in the bag; topics: /imu \[sensor_msgs/msg/Imu\]"):
         _pick(topics, "sensor_msgs/msg/LaserScan", None, "scan")
     assert _pick(topics, "nav_msgs/msg/Odometry", None, "odometry") == "/odom"
+
+
+def test_conventional_name_wins_when_a_type_has_several_topics():
+    topics = {"/odom": "nav_msgs/msg/Odometry", "/ground_truth": "nav_msgs/msg/Odometry",
+              "/scan": "sensor_msgs/msg/LaserScan"}
+    assert _pick(topics, "nav_msgs/msg/Odometry", None, "odometry") == "/odom"
+    del topics["/odom"]
+    topics["/wheel_odom"] = "nav_msgs/msg/Odometry"
+    with pytest.raises(BagError, match="2 nav_msgs/msg/Odometry topics"):
+        _pick(topics, "nav_msgs/msg/Odometry", None, "odometry")

@@ -116,6 +116,40 @@ class SlamOnSimulator(unittest.TestCase):
         self.assertGreater(metrics["processed_scans"], 300)
         # keeping up: (nearly) every scan of the run became an update, none fell behind
         self.assertGreaterEqual(len(ms), 0.95 * self.scans - 3, f"{len(ms)} updates for {self.scans} scans")
+        type(self).live_rms = metrics["trajectory_rms_m"]
+
+    def test_6_the_recorded_bag_replays_offline_with_the_same_quality(self):
+        import glob
+        import subprocess
+
+        from assign5.params import split_params
+        from fastslam import offline
+        from fastslam.io.bag import read_bag
+        from fastslam.metrics import trajectory_errors
+
+        prefix = rospy.get_param("~bag_prefix")
+        subprocess.run(["rosnode", "kill", "/record"], capture_output=True, timeout=30)
+        deadline = time.time() + 30
+        while (glob.glob(prefix + "*.bag.active") or not glob.glob(prefix + "*.bag")) and time.time() < deadline:
+            time.sleep(0.5)
+        bag = max(glob.glob(prefix + "*.bag"), key=os.path.getmtime)
+        data = read_bag(bag)
+        self.assertEqual((data.scan_topic, data.odom_topic), ("/scan", "/odom"))
+        self.assertAlmostEqual(data.mount.x, -0.032)  # from the bag's /tf_static
+        _, cfg = split_params(rospy.get_param("/slam"))
+        result = offline.run_bag(data, cfg)
+        with self.recorder.lock:
+            truth = np.array(self.recorder.truth)
+        from fastslam.geometry import relative
+        from fastslam.sim.world import load_world
+
+        spawn = load_world(rospy.get_param("~world_file")).spawn
+        err = trajectory_errors(result.slam.trajectory(), np.c_[truth[:, 0], relative(spawn, truth[:, 1:])])
+        rms = float(np.sqrt(np.mean(err ** 2)))
+        print(f"offline on the recorded bag: {result.updates} updates, RMS {rms:.3f} m "
+              f"(live {getattr(self, 'live_rms', float('nan')):.3f} m)", file=sys.stderr)
+        self.assertGreaterEqual(result.updates, len(data.scans) - 2)
+        self.assertLessEqual(rms, rospy.get_param("~max_rms", 0.10))
 
 
 if __name__ == "__main__":

@@ -98,6 +98,9 @@ def _stamp(header: Any) -> float:
     return float(header.stamp.sec) + 1e-9 * float(header.stamp.nanosec)
 
 
+CONVENTIONAL = {SCAN_TYPE: "/scan", ODOM_TYPE: "/odom"}
+
+
 def _pick(topics: dict[str, str], msgtype: str, wanted: str | None, what: str) -> str:
     listing = ", ".join(f"{t} [{m}]" for t, m in sorted(topics.items())) or "(none)"
     if wanted is not None:
@@ -107,6 +110,10 @@ def _pick(topics: dict[str, str], msgtype: str, wanted: str | None, what: str) -
     found = [t for t, m in topics.items() if m == msgtype]
     if not found:
         raise BagError(f"no {msgtype} topic in the bag; topics: {listing}")
+    if len(found) > 1 and CONVENTIONAL.get(msgtype) in found:
+        # e.g. /odom beside the simulator's /ground_truth: the conventional name wins
+        log.info("%d %s topics; using %s", len(found), msgtype, CONVENTIONAL[msgtype])
+        return CONVENTIONAL[msgtype]
     if len(found) > 1:
         raise BagError(f"{len(found)} {msgtype} topics, name the {what} topic to use; topics: {listing}")
     return found[0]

@@ -58,6 +58,7 @@ class SlamConfig:
     fov_min: float = _num(-180.0, -180.0, 180.0, "first beam angle used, robot frame [deg]")
     fov_max: float = _num(180.0, -180.0, 180.0, "last beam angle used, robot frame [deg]")
     beam_step: int = _num(1, 1, 10000, "use every k-th beam")
+    free_beam_step: int = _num(1, 1, 10000, "likelihood mode: clear free space along every k-th used beam only (all mark their end cells)")
     max_range: float = _num(3.5, 0.1, 200.0, "ranges are used up to this distance [m]")
     no_return_range: float = _num(3.5, 0.0, 200.0, "a beam with no return clears free space this far; 0 = not at all [m]")
     # Weights (assignment 3.4) and resampling (3.5)

@@ -146,7 +146,8 @@ def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], 
 
 def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
                      ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
-                     max_range: float, range_min: float, groups: int, l_units: dict[str, int]) -> None:
+                     max_range: float, range_min: float, groups: int, free_step: int,
+                     l_units: dict[str, int]) -> None:
     """The grid update of observe without expected ranges: beams are traced in groups
     of similar length, each only as far as its longest beam reaches, not to max_range."""
     n_p, m = angles.shape
@@ -155,6 +156,13 @@ def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArr
     order = order[reach[order] > 0]                          # beams that clear nothing are skipped
     if len(order) == 0:
         return
+    # Only every free_step-th beam (in angle) is traced; the others only mark their
+    # end cells, computed directly from the end points.
+    marked = np.zeros(0, dtype=np.intp)
+    if free_step > 1:
+        traced = (np.arange(m) % free_step) == 0
+        marked = np.flatnonzero(hit & ~traced)
+        order = order[traced[order]]
     parts = [p for p in np.array_split(order, min(groups, len(order))) if len(p)]
     k_mean = float(np.mean(reach[order])) / grid.resolution + 2
     per_chunk = max(1, int(CHUNK_ELEMENTS // (len(order) * k_mean)))
@@ -169,13 +177,23 @@ def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArr
             f, h = _cells_to_update(rays, until, hit_step, rays.first_step_at(range_min))
             free_cells.append(f)
             hit_cells.append(h)
-        _apply(grid, np.concatenate(free_cells), np.concatenate(hit_cells), **l_units)
+        if len(marked):
+            a_m = angles[a:b][:, marked]
+            ends = origins[a:b, None, :] + ranges[marked, None] * np.stack([np.cos(a_m), np.sin(a_m)], -1)
+            cell = grid.world_to_cell(ends)                                   # (n, K, 2)
+            h_, w_ = grid.shape
+            ok = (cell[..., 0] >= 0) & (cell[..., 0] < w_) & (cell[..., 1] >= 0) & (cell[..., 1] < h_)
+            flat = ((np.arange(a, b)[:, None] * h_ + cell[..., 1]) * w_ + cell[..., 0])[ok]
+            hit_cells.append(flat)
+        _apply(grid, np.concatenate(free_cells) if free_cells else np.zeros(0, np.int64),
+               np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), **l_units)
 
 
 def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
             ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
             max_range: float, range_min: float, expected: bool,
-            l_free: int, l_occ: int, l_min: int, l_max: int, trim_groups: int = 0) -> NDArray[np.float64] | None:
+            l_free: int, l_occ: int, l_min: int, l_max: int, trim_groups: int = 0,
+            free_step: int = 1) -> NDArray[np.float64] | None:
     """Expected scan from each particle's map as it was, then the scan written into it.
 
     Runs over particles in chunks so the (n, M, K) temporaries stay small and in cache.
@@ -188,12 +206,14 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
         trim_groups: without expected ranges, > 0 traces the beams in this many groups
             of similar length, each group only as far as its longest beam (faster; the
             cells of a beam's line then depend on its group's length).
+        free_step: with trim_groups, only every free_step-th beam clears free space;
+            the others only mark the cell of their end point.
     Returns:
         (N, M) expected ranges, or None.
     """
     if trim_groups > 0 and not expected:
         _observe_trimmed(grid, origins, angles, ranges, hit, free_range, max_range=max_range,
-                         range_min=range_min, groups=trim_groups,
+                         range_min=range_min, groups=trim_groups, free_step=free_step,
                          l_units=dict(l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max))
         return None
     n_p, m = angles.shape

@@ -142,3 +142,56 @@ def test_odometry_model_noise_scales_with_motion():
     assert poses[:, 0].mean() == pytest.approx(1.0, abs=0.01)
     assert poses[:, 0].std() == pytest.approx(0.1, rel=0.05)
     assert np.abs(poses[:, 2]).max() == 0.0
+
+
+def _likelihood_map(free_beam_step: int = 1) -> tuple[FastSlam, np.ndarray, np.ndarray]:
+    """One scan of the room written by the likelihood mode (trimmed trace) into 2 maps."""
+    slam = FastSlam(SlamConfig(particles=2, seed=0, toggle_noise=0, weight_model="likelihood",
+                               free_beam_step=free_beam_step))
+    pose = np.array([0.3, -0.2, 0.4])
+    slam.step(pose, _scan(pose))
+    z = room_ranges(pose, ANGLES)
+    a = pose[2] + ANGLES
+    ends = pose[:2] + z[:, None] * np.stack([np.cos(a), np.sin(a)], 1)
+    mids = pose[:2] + 0.5 * z[:, None] * np.stack([np.cos(a), np.sin(a)], 1)
+    ends[z >= 3.4] = np.nan                                  # no return (max_range 3.5): no wall
+    return slam, ends, mids
+
+
+def _values(slam: FastSlam, points: np.ndarray) -> np.ndarray:
+    c = slam.grid.world_to_cell(points)
+    return slam.grid.logodds[:, c[:, 1], c[:, 0]]          # (N, P)
+
+
+def _near(slam: FastSlam, points: np.ndarray, reduce=np.min) -> np.ndarray:
+    """(N, P) least (or most) log-odds among each point's cell and its 8 neighbours: a
+    digital beam line runs from the cell of the origin, so it may pass beside a point."""
+    c = slam.grid.world_to_cell(points[np.isfinite(points).all(axis=1)])
+    d = np.arange(-1, 2)
+    return reduce([slam.grid.logodds[:, c[:, 1] + dy, c[:, 0] + dx] for dy in d for dx in d], axis=0)
+
+
+def test_trimmed_map_update_marks_end_cells_and_clears_the_beams():
+    slam, ends, mids = _likelihood_map()
+    assert np.all(_near(slam, ends, np.max) > 0)               # walls at the end cells
+    assert np.all(_near(slam, mids) < 0)                 # the middle of every beam is free
+    far = np.array([[4.0, 4.0], [-4.0, 3.0]])                # outside the room: never touched
+    assert np.all(_values(slam, far) == 0)
+
+
+def test_free_beam_step_clears_along_every_kth_beam_but_marks_all_end_cells():
+    slam, ends, mids = _likelihood_map(free_beam_step=2)
+    full, _, _ = _likelihood_map()
+    traced = np.arange(len(ANGLES)) % 2 == 0
+    assert np.all(_near(slam, mids[traced]) < 0)
+    assert np.any(_values(slam, mids[~traced]) == 0)         # untraced beams leave some unknown
+    assert np.all(_near(slam, ends[~traced], np.max) > 0)    # ...but their end cells are walls
+    assert np.count_nonzero(slam.grid.logodds < 0) < np.count_nonzero(full.grid.logodds < 0)
+
+
+def test_grow_fraction_sets_the_least_growth_of_a_side():
+    for fraction, least in ((0.5, 50), (0.1, 10)):
+        g = GridMaps(1, (100, 100), 0.1, (0.0, 0.0))
+        g.grow_to(-0.05, 0.0, 9.0, 9.0, fraction=fraction)    # one cell short on the left
+        assert g.shape == (100, 100 + least)
+        np.testing.assert_allclose(g.origin, [-least * 0.1, 0.0])

@@ -95,3 +95,18 @@ def test_pool_is_the_maximum_over_two_by_two_cells():
     a = rng.integers(-100, 100, (2, 6, 8), dtype=np.int8)
     expect = a.reshape(2, 3, 2, 4, 2).max(axis=(2, 4))
     np.testing.assert_array_equal(scanmatch._pool(a), expect)
+
+
+def test_returns_subset_spreads_the_returns_evenly():
+    from fastslam.scan import Beams
+    from fastslam.scanmatch import returns_subset
+
+    hit = np.ones(100, dtype=bool)
+    hit[::3] = False                                          # 66 returns
+    beams = Beams(angles=np.linspace(-1, 1, 100), ranges=np.linspace(1, 2, 100), hit=hit,
+                  free_range=np.ones(100), range_min=0.1)
+    sub = returns_subset(beams, 10)
+    assert len(sub.ranges) == 10 and sub.hit.all()
+    idx = np.searchsorted(beams.angles, sub.angles)
+    assert idx[0] == np.flatnonzero(hit)[0] and idx[-1] == np.flatnonzero(hit)[-1]
+    assert len(returns_subset(beams, 500).ranges) == 66

@@ -181,7 +181,8 @@ class FastSlam:
         d = raycast.observe(self.grid, origins, angles, beams.ranges, beams.hit, beams.free_range,
                             max_range=cfg.max_range, range_min=beams.range_min,
                             expected=weigh and cfg.weight_model == "assignment", **self._l_units,
-                            trim_groups=TRIM_GROUPS if cfg.weight_model == "likelihood" else 0)
+                            trim_groups=TRIM_GROUPS if cfg.weight_model == "likelihood" else 0,
+                            free_step=cfg.free_beam_step)
         if d is not None:
             log_w = assignment_log_weights(d, beams.ranges, beams.hit)
         if log_w is not None:

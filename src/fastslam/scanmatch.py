@@ -105,11 +105,13 @@ def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: flo
     # there are at most k cells off, in a part of the window nothing was seen in.
     cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
     cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
-    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx
+    index = np.int32 if level.size < np.iinfo(np.int32).max else np.int64
+    flat = ((np.arange(n)[:, None, None] * hv + cy) * wv + cx).astype(index)
     d = np.arange(-k, k + 1)
-    shifts = (d[:, None] * wv + d[None, :]).reshape(-1)                   # (T,)
-    vals = level.reshape(-1).take(flat[..., None] + shifts)              # (N, A, M, T) int8
-    return _cell_score(vals).sum(axis=2, dtype=np.int64)
+    shifts = (d[:, None] * wv + d[None, :]).reshape(-1).astype(index)   # (T,)
+    # End points last, so the sum runs over contiguous memory; M < 2**15 fits int16.
+    vals = level.reshape(-1).take(flat[:, :, None, :] + shifts[:, None])  # (N, A, T, M) int8
+    return _cell_score(vals).sum(axis=3, dtype=np.int16).astype(np.int64)
 
 
 def _pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[np.float64],
@@ -167,10 +169,11 @@ def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cel
     j0 = np.minimum(np.maximum(np.floor(v), 0), h - 2)
     fu = np.minimum(np.maximum(u - i0, 0.0), 1.0)
     fv = np.minimum(np.maximum(v - j0, 0.0), 1.0)
-    flat = ((np.arange(n)[:, None, None] * h + j0.astype(np.int64)) * w + i0.astype(np.int64))
+    index = np.int32 if logodds.size < np.iinfo(np.int32).max else np.int64
+    flat = ((np.arange(n)[:, None, None] * h + j0.astype(index)) * w + i0.astype(index))
     f = logodds.reshape(-1)
 
-    def ev(i: NDArray[np.int64]) -> NDArray[np.float32]:
+    def ev(i: NDArray[np.integer]) -> NDArray[np.float32]:
         return np.maximum(f.take(i), 0).astype(np.float32)
 
     a, b = ev(flat), ev(flat + 1)

@@ -192,6 +192,21 @@ def _pool(level: NDArray[np.int8]) -> NDArray[np.int8]:
     return np.maximum(rows[:, :, 0::2], rows[:, :, 1::2])
 
 
+def _pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+    """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
+    2x2 and 4x4 block is occupied (H, W multiples of 4); > 0 exactly where _pool's are.
+
+    Column pairs of a contiguous flag array are read as one uint16 each, row pairs
+    as the two halves of a doubled row: cheaper than maxima of strided int8 views.
+    """
+    n, h, w = level.shape
+    rows = np.maximum(level[:, 0::2, :], level[:, 1::2, :])
+    half = (rows > 0).view(np.uint16) != 0                                # (N, H/2, W/2)
+    pairs = half.reshape(n, h // 4, w)                                    # rows 2i, 2i+1 side by side
+    quarter = (pairs[:, :, :w // 2] | pairs[:, :, w // 2:]).view(np.uint16) != 0
+    return half.view(np.int8), quarter.view(np.int8)
+
+
 def _window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:
     """Cell bounds (x0, y0, x1, y1) of the part of the grid within reach of any pose,
     with sides a multiple of POOL cells."""
@@ -228,8 +243,11 @@ def refine_poses(slam: FastSlam, beams: Beams) -> NDArray[np.bool_]:
     if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
         return trusted
     raw = grid.logodds[:, y0:y1, x0:x1]                           # a view
-    half = _pool(raw)                                              # 2x2 cells: occupied if any is
-    quarter = _pool(half)
+    if FREE_COST == 0:  # only occupied or not counts on the pooled levels: pool 0/1 flags
+        half, quarter = _pool_occupied(raw)                        # 2x2, 4x4 cells: occupied if any is
+    else:
+        half = _pool(raw)
+        quarter = _pool(half)
     known = np.count_nonzero(quarter > 0, axis=(1, 2))             # (N,) occupied 4x4 blocks in reach
     w_origin = grid.origin + np.array([x0, y0]) * res
     # 1. coarse: wide window on 4x4 cells

@@ -21,7 +21,7 @@ from std_msgs.msg import Bool, Float64
 from fastslam.geometry import relative, yaw_from_quaternion
 from fastslam.io.mapfile import save_map
 from fastslam.io.png import render_map, write_png
-from fastslam.metrics import map_quality, trajectory_errors
+from fastslam.metrics import in_frame_of, map_quality, trajectory_errors
 from fastslam.sim.world import load_world
 
 
@@ -103,8 +103,7 @@ def evaluate(world_file: str, truth_world: np.ndarray, traj: np.ndarray, grid: O
     truth = np.c_[truth_world[:, 0], relative(spawn, truth_world[:, 1:])]
     occ = np.asarray(grid.data, dtype=np.int8).reshape(grid.info.height, grid.info.width)
     origin = (grid.info.origin.position.x, grid.info.origin.position.y)
-    boundary_w = world.sample_boundary(grid.info.resolution / 4)
-    boundary = relative(spawn, np.c_[boundary_w, np.zeros(len(boundary_w))])[:, :2]
+    boundary = in_frame_of(spawn, world.sample_boundary(grid.info.resolution / 4))
     err = trajectory_errors(traj, truth)
     metrics = {
         "trajectory_rms_m": float(np.sqrt(np.mean(err ** 2))),

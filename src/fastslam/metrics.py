@@ -30,6 +30,13 @@ def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64])
     return np.hypot(est[:, 1] - ref[:, 0], est[:, 2] - ref[:, 1])
 
 
+def in_frame_of(pose: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(P, 2) world points seen from pose (3,): the map frame of a run that started there."""
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    d = np.asarray(points, dtype=float) - pose[:2]
+    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+
+
 def nearest_distance(points: NDArray[np.float64], targets: NDArray[np.float64],
                       chunk: int = 2048) -> NDArray[np.float64]:
     """(P,) distance from each point (P, 2) to the nearest target (Q, 2)."""

@@ -15,7 +15,7 @@ import numpy as np
 
 from .config import SlamConfig
 from .geometry import relative
-from .metrics import map_quality, trajectory_errors
+from .metrics import in_frame_of, map_quality, trajectory_errors
 from .scan import Scan
 from .sim.route import load_route
 from .sim.sim import SimConfig, Simulation
@@ -39,9 +39,7 @@ class SimRun:
     def metrics(self) -> dict[str, Any]:
         traj = self.slam.trajectory()
         err = trajectory_errors(traj, self.truth)
-        boundary_w = self.world.sample_boundary(self.slam.grid.resolution / 4)
-        spawn = self.world.spawn
-        boundary = relative(spawn, np.c_[boundary_w, np.zeros(len(boundary_w))])[:, :2]
+        boundary = in_frame_of(self.world.spawn, self.world.sample_boundary(self.slam.grid.resolution / 4))
         dr = trajectory_errors(self.odom, self.truth)
         return {
             "trajectory_rms_m": float(np.sqrt(np.mean(err ** 2))),

@@ -4,8 +4,7 @@ import pytest
 
 from fastslam import simrun
 from fastslam.config import SlamConfig
-from fastslam.geometry import relative
-from fastslam.metrics import OCCUPIED, nearest_distance
+from fastslam.metrics import OCCUPIED, in_frame_of, nearest_distance
 
 
 def occupied_distances(run):
@@ -13,8 +12,7 @@ def occupied_distances(run):
     occ = run.slam.best_occupancy()
     cells = np.argwhere(occ >= OCCUPIED)[:, ::-1]
     centres = run.slam.grid.cell_to_world(cells)
-    b = run.world.sample_boundary(0.0125)
-    boundary = relative(run.world.spawn, np.c_[b, np.zeros(len(b))])[:, :2]
+    boundary = in_frame_of(run.world.spawn, run.world.sample_boundary(0.0125))
     return nearest_distance(centres, boundary)
 
 

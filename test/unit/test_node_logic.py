@@ -71,3 +71,10 @@ def test_map_quality_counts_recall_and_spurious_cells():
     assert q["occupied_cells"] == 21 and q["spurious_fraction"] == pytest.approx(1 / 21)
     occ[:, 15] = 0             # the wall seen as free: observed, but missed
     assert map_quality(occ, 0.1, (0.0, 0.0), boundary)["boundary_recall"] == 0.0
+
+
+def test_points_in_the_frame_of_a_pose():
+    from fastslam.metrics import in_frame_of
+
+    out = in_frame_of(np.array([1.0, 2.0, np.pi / 2]), np.array([[1.0, 3.0], [0.0, 2.0]]))
+    np.testing.assert_allclose(out, [[1.0, 0.0], [0.0, 1.0]], atol=1e-12)

@@ -74,10 +74,13 @@ def trace(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float
     # Cells of step k lie within k cells (Chebyshev) of the start: a box of k_max cells
     # around every start decides whether any cell can fall outside.
     inside = bool(np.all(start >= k_max) and np.all(start[:, 0] + k_max < w) and np.all(start[:, 1] + k_max < h))
-    fx = np.rint(slope[..., 0, None] * k)                                  # (n, M, K) float32
-    fy = np.rint(slope[..., 1, None] * k)
+    fx = np.multiply(slope[..., 0, None], k)                              # (n, M, K) float32
+    np.rint(fx, out=fx)
+    fy = np.multiply(slope[..., 1, None], k)
+    np.rint(fy, out=fy)
     if inside:
-        fx += fy * w  # exact: |value| < 2**24
+        fy *= np.float32(w)
+        fx += fy  # exact: |value| < 2**24
         flat = fx.astype(index_type)
         flat += base[:, None, None]
         return Rays(flat=flat, steps=steps, max_range=float(max_range), inside=True)
@@ -138,6 +141,20 @@ def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArra
 def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], *,
            l_free: int, l_occ: int, l_min: int, l_max: int) -> None:
     cells = grid.logodds.reshape(-1)
+    lo, hi = np.iinfo(cells.dtype).min, np.iinfo(cells.dtype).max
+    if l_free <= 0 <= l_occ and l_min <= l_max and lo <= l_min - l_free <= hi and lo <= l_max - l_occ <= hi:
+        # The same sums and clamps in int8 without overflow: clamp first, then add.
+        before = cells.take(hit)  # hit cells take l_occ alone: read them first
+        f = cells.take(free)
+        np.maximum(f, l_min - l_free, out=f)
+        f += np.int8(l_free)
+        # Writing through repeated indices writes once: one update per cell per scan.
+        cells.put(free, f)
+        np.minimum(before, l_max - l_occ, out=before)
+        before += np.int8(l_occ)
+        np.maximum(before, l_min, out=before)
+        cells.put(hit, before)
+        return
     before = cells[hit].astype(np.int16)  # hit cells take l_occ alone: read them first
     # Assigning through repeated indices writes once: one update per cell per scan.
     cells[free] = np.maximum(cells[free].astype(np.int16) + l_free, l_min)

@@ -105,13 +105,22 @@ def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: flo
     # there are at most k cells off, in a part of the window nothing was seen in.
     cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
     cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
-    index = np.int32 if level.size < np.iinfo(np.int32).max else np.int64
-    flat = ((np.arange(n)[:, None, None] * hv + cy) * wv + cx).astype(index)
+    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx                # (N, A, M)
     d = np.arange(-k, k + 1)
-    shifts = (d[:, None] * wv + d[None, :]).reshape(-1).astype(index)   # (T,)
-    # End points last, so the sum runs over contiguous memory; M < 2**15 fits int16.
-    vals = level.reshape(-1).take(flat[:, :, None, :] + shifts[:, None])  # (N, A, T, M) int8
-    return _cell_score(vals).sum(axis=3, dtype=np.int16).astype(np.int64)
+    shifts = (d[:, None] * wv + d[None, :]).reshape(-1).tolist()            # (T,), ascending
+    # End points first: one gather per shift, from the flat map offset by the shift
+    # (no (N, A, T, M) index array), and the sum over end points adds whole (N, A)
+    # slabs. Every shifted cell is inside (clamped above), so mode="clip" never clips.
+    lo = shifts[0]
+    at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)       # (M, N, A)
+    at += lo                                                                # >= 0: cells are clamped k from the edge
+    f = level.reshape(-1)
+    vals = np.empty((len(shifts),) + at.shape, dtype=level.dtype)           # (T, M, N, A)
+    for i, s in enumerate(shifts):
+        np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
+    # M < 2**15 fits int16.
+    sums = _cell_score(vals).sum(axis=1, dtype=np.int16)                   # (T, N, A)
+    return sums.transpose(1, 2, 0).astype(np.int64, order="C")
 
 
 def _pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[np.float64],

@@ -178,15 +178,15 @@ def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cel
     j0 = np.minimum(np.maximum(np.floor(v), 0), h - 2)
     fu = np.minimum(np.maximum(u - i0, 0.0), 1.0)
     fv = np.minimum(np.maximum(v - j0, 0.0), 1.0)
-    index = np.int32 if logodds.size < np.iinfo(np.int32).max else np.int64
-    flat = ((np.arange(n)[:, None, None] * h + j0.astype(index)) * w + i0.astype(index))
+    flat = (np.arange(n)[:, None, None] * h + j0.astype(np.intp)) * w + i0.astype(np.intp)
     f = logodds.reshape(-1)
 
-    def ev(i: NDArray[np.integer]) -> NDArray[np.float32]:
-        return np.maximum(f.take(i), 0).astype(np.float32)
+    def ev(offset: int) -> NDArray[np.float32]:
+        # f[offset:] instead of flat + offset: no index array per corner.
+        return np.maximum(f[offset:].take(flat), 0).astype(np.float32)
 
-    a, b = ev(flat), ev(flat + 1)
-    c, d = ev(flat + w), ev(flat + w + 1)
+    a, b = ev(0), ev(1)
+    c, d = ev(w), ev(w + 1)
     val = (a * (1 - fu) + b * fu) * (1 - fv) + (c * (1 - fu) + d * fu) * fv
     return val.sum(axis=2)
 
@@ -332,11 +332,17 @@ def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams,
     iy = np.floor(v).astype(np.int64)
     fx = (u - ix - 0.5).astype(np.float32)
     fy = (v - iy - 0.5).astype(np.float32)
-    cx = ix[..., None] + ox                                     # (N, S, O)
-    cy = iy[..., None] + oy
-    inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
-    flat = (np.arange(n)[:, None, None] * h + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
-    occupied = (grid.logodds.reshape(-1).take(flat) > 0) & inside
+    if ix.min() - r >= 0 and iy.min() - r >= 0 and ix.max() + r < w and iy.max() + r < h:
+        # Every searched cell is inside (the usual case): no bounds to check.
+        base = (np.arange(n)[:, None] * h + iy) * w + ix        # (N, S)
+        flat = base[..., None] + (oy * w + ox)                  # (N, S, O)
+        occupied = grid.logodds.reshape(-1).take(flat) > 0
+    else:
+        cx = ix[..., None] + ox                                 # (N, S, O)
+        cy = iy[..., None] + oy
+        inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
+        flat = (np.arange(n)[:, None, None] * h + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
+        occupied = (grid.logodds.reshape(-1).take(flat) > 0) & inside
     d2 = (ox - fx[..., None]) ** 2 + (oy - fy[..., None]) ** 2
     nearest = np.sqrt(np.where(occupied, d2, np.inf).min(axis=2)) * res
     out[:, sel] = np.minimum(nearest, max_dist)

@@ -147,16 +147,19 @@ def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], 
     lo, hi = np.iinfo(cells.dtype).min, np.iinfo(cells.dtype).max
     if l_free <= 0 <= l_occ and l_min <= l_max and lo <= l_min - l_free <= hi and lo <= l_max - l_occ <= hi:
         # The same sums and clamps in int8 without overflow: clamp first, then add.
-        before = cells.take(hit)  # hit cells take l_occ alone: read them first
-        f = cells.take(free)
+        # Indexing with intp indices is much faster than with int32 ones or put.
+        free = free.astype(np.intp, copy=False)
+        hit = hit.astype(np.intp, copy=False)
+        before = cells[hit]  # hit cells take l_occ alone: read them first
+        f = cells[free]
         np.maximum(f, l_min - l_free, out=f)
         f += np.int8(l_free)
-        # Writing through repeated indices writes once: one update per cell per scan.
-        cells.put(free, f)
+        # Assigning through repeated indices writes once: one update per cell per scan.
+        cells[free] = f
         np.minimum(before, l_max - l_occ, out=before)
         before += np.int8(l_occ)
         np.maximum(before, l_min, out=before)
-        cells.put(hit, before)
+        cells[hit] = before
         return
     before = cells[hit].astype(np.int16)  # hit cells take l_occ alone: read them first
     # Assigning through repeated indices writes once: one update per cell per scan.

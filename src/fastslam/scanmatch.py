@@ -118,8 +118,9 @@ def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: flo
     vals = np.empty((len(shifts),) + at.shape, dtype=level.dtype)           # (T, M, N, A)
     for i, s in enumerate(shifts):
         np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
-    # M < 2**15 fits int16.
-    sums = _cell_score(vals).sum(axis=1, dtype=np.int16)                   # (T, N, A)
+    # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
+    acc = np.int8 if FREE_COST == 0 and len(local) < 128 else np.int16
+    sums = _cell_score(vals).sum(axis=1, dtype=acc)                        # (T, N, A)
     return sums.transpose(1, 2, 0).astype(np.int64, order="C")
 
 

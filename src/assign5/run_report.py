@@ -21,7 +21,7 @@ from std_msgs.msg import Bool, Float64
 from fastslam.geometry import relative, yaw_from_quaternion
 from fastslam.io.mapfile import save_map
 from fastslam.io.png import render_map, write_png
-from fastslam.metrics import in_frame_of, map_quality, trajectory_errors
+from fastslam.metrics import run_quality
 from fastslam.sim.world import load_world
 
 
@@ -99,20 +99,14 @@ def evaluate(world_file: str, truth_world: np.ndarray, traj: np.ndarray, grid: O
     """Metrics of a run. The map frame is the odometry frame, whose origin is the
     robot's spawn pose in the world, so the truth is expressed relative to that pose."""
     world = load_world(world_file)
-    spawn = world.spawn
-    truth = np.c_[truth_world[:, 0], relative(spawn, truth_world[:, 1:])]
+    truth = np.c_[truth_world[:, 0], relative(world.spawn, truth_world[:, 1:])]
     occ = np.asarray(grid.data, dtype=np.int8).reshape(grid.info.height, grid.info.width)
     origin = (grid.info.origin.position.x, grid.info.origin.position.y)
-    boundary = in_frame_of(spawn, world.sample_boundary(grid.info.resolution / 4))
-    err = trajectory_errors(traj, truth)
     metrics = {
-        "trajectory_rms_m": float(np.sqrt(np.mean(err ** 2))),
-        "trajectory_max_m": float(err.max()),
-        "final_error_m": float(err[-1]),
+        **run_quality(world, traj, truth, occ, grid.info.resolution, origin),
         "processed_scans": int(len(traj)),
         "ms_per_update_median": float(np.median(update_ms)) if update_ms else None,
         "ms_per_update_p95": float(np.percentile(update_ms, 95)) if update_ms else None,
-        **map_quality(occ, grid.info.resolution, origin, boundary),
     }
     return metrics, occ, truth
 

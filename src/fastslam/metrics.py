@@ -92,3 +92,18 @@ def map_quality(occupancy: NDArray[np.int8], resolution: float, origin: tuple[fl
         "spurious_fraction": float(far.mean()) if len(far) else 0.0,
         "occupied_cells": int(occupied.sum()),
     }
+
+
+def run_quality(world, estimate: NDArray[np.float64], truth: NDArray[np.float64], occupancy: NDArray[np.int8],
+                resolution: float, origin: tuple[float, float]) -> dict[str, float]:
+    """Trajectory error and map agreement of a simulated run, all in the run's map frame.
+
+    Args:
+        world: the simulated World (its spawn is the map frame's origin).
+        estimate, truth: (T, 4) rows t, x, y, theta in the map frame.
+        occupancy, resolution, origin: the map as in map_quality.
+    """
+    err = trajectory_errors(estimate, truth)
+    boundary = in_frame_of(world.spawn, world.sample_boundary(resolution / 4))
+    return {"trajectory_rms_m": float(np.sqrt(np.mean(err ** 2))), "trajectory_max_m": float(err.max()),
+            "final_error_m": float(err[-1]), **map_quality(occupancy, resolution, origin, boundary)}

@@ -15,7 +15,7 @@ import numpy as np
 
 from .config import SlamConfig
 from .geometry import relative
-from .metrics import in_frame_of, map_quality, trajectory_errors
+from .metrics import run_quality, trajectory_errors
 from .scan import Scan
 from .sim.route import load_route
 from .sim.sim import SimConfig, Simulation
@@ -37,18 +37,14 @@ class SimRun:
     odoms: list = field(default_factory=list)   # OdomRecord of every odometry tick, when recorded
 
     def metrics(self) -> dict[str, Any]:
-        traj = self.slam.trajectory()
-        err = trajectory_errors(traj, self.truth)
-        boundary = in_frame_of(self.world.spawn, self.world.sample_boundary(self.slam.grid.resolution / 4))
+        grid = self.slam.grid
         dr = trajectory_errors(self.odom, self.truth)
         return {
-            "trajectory_rms_m": float(np.sqrt(np.mean(err ** 2))),
-            "trajectory_max_m": float(err.max()),
+            **run_quality(self.world, self.slam.trajectory(), self.truth, self.slam.best_occupancy(),
+                          grid.resolution, tuple(grid.origin)),
             "dead_reckoning_rms_m": float(np.sqrt(np.mean(dr ** 2))),
             "updates": self.updates,
             "ms_per_update": 1000.0 * self.seconds / max(self.updates, 1),
-            **map_quality(self.slam.best_occupancy(), self.slam.grid.resolution,
-                          tuple(self.slam.grid.origin), boundary),
         }
 
 

@@ -77,6 +77,13 @@ class SlamConfig:
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")
     match_sigma_xy: float = _num(0.01, 0.0, 1.0, "spread of the sample around a matched pose [m]")
     match_sigma_theta: float = _num(0.005, 0.0, 1.0, "spread of the sample around a matched pose [rad]")
+    match_prior: str = _choice("window", ("window", "motion"),
+                               "odometry prior of the match: window: centred on the particle's sample, "
+                               "std-dev half the search window; motion: centred on the noise-free "
+                               "prediction, std-dev from srr/srt/str/stt for this step")
+    match_refine: str = _choice("hill", ("hill", "icp"),
+                                "last stage of the match: hill: climb the interpolated evidence; "
+                                "icp: Gauss-Newton on end point to nearest occupied cell, with the prior")
     # Update gating (improved mode); zeros process every scan as the assignment does
     linear_update: float = _num(0.0, 0.0, 100.0, "process a scan after this much travel [m]")
     angular_update: float = _num(0.0, 0.0, 2 * math.pi, "... or this much rotation [rad]")

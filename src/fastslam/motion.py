@@ -36,6 +36,29 @@ def sample_motion_assignment(poses: NDArray[np.float64], prev_odom: NDArray, odo
     poses[:, 2] = wrap_angle(poses[:, 2])
 
 
+def _rot_trans_rot(prev_odom: NDArray, odom: NDArray) -> tuple[float, float, float]:
+    """The odometry step as (rot1, trans, rot2), trans negative when reversing."""
+    dx, dy = float(odom[0] - prev_odom[0]), float(odom[1] - prev_odom[1])
+    trans = float(np.hypot(dx, dy))
+    rot1 = float(wrap_angle(np.arctan2(dy, dx) - prev_odom[2])) if trans > 1e-6 else 0.0
+    if abs(rot1) > np.pi / 2:  # driving backwards: turn less, travel negative
+        rot1, trans = float(wrap_angle(rot1 + np.pi)), -trans
+    rot2 = float(wrap_angle(odom[2] - prev_odom[2] - rot1))
+    return rot1, trans, rot2
+
+
+def odometry_std(prev_odom: NDArray, odom: NDArray, alphas: tuple[float, float, float, float]
+                 ) -> NDArray[np.float64]:
+    """(3,) std-devs of sample_motion_odometry's end pose for this step: along the
+    direction of travel, across it [m], and of the heading [rad] (first order)."""
+    srr, srt, s_rt, stt = alphas
+    rot1, trans, rot2 = _rot_trans_rot(prev_odom, odom)
+    s_rot1 = stt * abs(rot1) + s_rt * abs(trans)
+    s_trans = srr * abs(trans) + srt * (abs(rot1) + abs(rot2))
+    s_rot2 = stt * abs(rot2) + s_rt * abs(trans)
+    return np.array([s_trans, abs(trans) * s_rot1, float(np.hypot(s_rot1, s_rot2))])
+
+
 def sample_motion_odometry(poses: NDArray[np.float64], prev_odom: NDArray, odom: NDArray,
                            alphas: tuple[float, float, float, float], noise: bool,
                            rng: np.random.Generator) -> None:
@@ -45,12 +68,7 @@ def sample_motion_odometry(poses: NDArray[np.float64], prev_odom: NDArray, odom:
     from rotation, rotation noise from translation and from rotation.
     """
     srr, srt, s_rt, stt = alphas
-    dx, dy = float(odom[0] - prev_odom[0]), float(odom[1] - prev_odom[1])
-    trans = float(np.hypot(dx, dy))
-    rot1 = float(wrap_angle(np.arctan2(dy, dx) - prev_odom[2])) if trans > 1e-6 else 0.0
-    if abs(rot1) > np.pi / 2:  # driving backwards: turn less, travel negative
-        rot1, trans = float(wrap_angle(rot1 + np.pi)), -trans
-    rot2 = float(wrap_angle(odom[2] - prev_odom[2] - rot1))
+    rot1, trans, rot2 = _rot_trans_rot(prev_odom, odom)
     n = len(poses)
     r1 = np.full(n, rot1)
     tr = np.full(n, trans)

@@ -8,7 +8,14 @@ Every particle matches the scan against its own map, all particles at once:
 2. the same search, narrower, on the map pooled to 2x2 cells and then on the map
    itself, each level around the previous level's best pose;
 3. hill climbing with halving steps (gmapping's optimiser) on the bilinearly
-   interpolated log-odds of occupied cells, for a pose finer than a cell.
+   interpolated log-odds of occupied cells, for a pose finer than a cell; or
+   (`match_refine: icp`) a few Gauss-Newton steps pulling each end point towards the
+   centre of the nearest occupied cell, weighed against the odometry prior.
+
+The odometry prior (`match_prior`) keeps a particle where odometry put it along
+directions the scan cannot tell (a corridor): either half the search window around
+the particle's own sample, or the motion model's spread for this step around the
+noise-free prediction (much tighter for short steps).
 
 A candidate's score is the sum over end points of the occupied evidence max(l, 0) of
 the cell each end point falls in (log-odds in grid units). Translations of a level
@@ -44,6 +51,14 @@ COARSE_EVERY = 1      # the coarse search uses every k-th matched end point
 FINE_ITERATIONS = 6    # hill-climbing steps (a step halves when no neighbour improves)
 MIN_BEAMS = 10         # fewer returns than this: nothing to match
 FREE_COST = 0          # an end point in known free space costs this many occupied hits
+# The motion prior never gets narrower than this: odometry of a standing robot still
+# errs by about half a cell, and the heading by a few tenths of a degree.
+PRIOR_FLOOR = np.array([0.025, 0.025, 0.01])    # along, across [m], heading [rad]
+ICP_ITERATIONS = 3
+ICP_RADIUS = 2         # cells searched around each end point for the nearest occupied one
+ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
+ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
+NORMAL_GAP = 0.3       # [m] neighbouring returns farther apart give no surface normal
 
 
 def _spread_returns(beams: Beams, count: int) -> NDArray[np.intp]:
@@ -130,15 +145,20 @@ def _pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[
     """Best candidate of each particle as a pose (N, 3), and the log-posteriors (N, A, T).
 
     Scores become log-likelihoods as in _nats; the odometry prediction `start` (N, 3)
-    adds a Gaussian prior with std-devs prior (3,), so that along a corridor, where
-    the scan cannot tell, the particle stays where odometry put it.
+    adds a Gaussian prior with std-devs prior (3,) along and across its heading and of
+    the heading, so that along a corridor, where the scan cannot tell, the particle
+    stays where odometry put it.
     """
     n, a, t = scores.shape
     d = np.arange(-k, k + 1)
     ox = (poses[:, 0] - start[:, 0])[:, None] + np.tile(d, 2 * k + 1)[None, :] * cell   # (N, T)
     oy = (poses[:, 1] - start[:, 1])[:, None] + np.repeat(d, 2 * k + 1)[None, :] * cell
     oa = wrap_angle(poses[:, 2] - start[:, 2])[:, None] + turns[None, :]                # (N, A)
-    log_prior = -0.5 * (((ox / prior[0]) ** 2 + (oy / prior[1]) ** 2)[:, None, :]
+    along, across = ox, oy  # an isotropic prior needs no turning
+    if prior[0] != prior[1]:
+        c, s_ = np.cos(start[:, 2, None]), np.sin(start[:, 2, None])
+        along, across = c * ox + s_ * oy, c * oy - s_ * ox                               # start's frame
+    log_prior = -0.5 * (((along / prior[0]) ** 2 + (across / prior[1]) ** 2)[:, None, :]
                         + ((oa / prior[2]) ** 2)[:, :, None])
     s = _nats(scores, beams) + log_prior
     best = s.reshape(n, -1).argmax(axis=1)
@@ -231,9 +251,14 @@ def _window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[i
     return x0, y0, x1, y1
 
 
-def refine_poses(slam: FastSlam, beams: Beams) -> NDArray[np.bool_]:
+def refine_poses(slam: FastSlam, beams: Beams,
+                 prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> NDArray[np.bool_]:
     """Moves each particle whose scan match is trusted to a sample around its matched
-    pose, in place in slam.poses (N, 3); returns which particles (N,) bool."""
+    pose, in place in slam.poses (N, 3); returns which particles (N,) bool.
+
+    prior: (centre (N, 3), std-devs (3,) along, across, heading) of the odometry prior;
+    None: centred on slam.poses with half the search window as std-devs.
+    """
     cfg = slam.cfg
     grid = slam.grid
     n = len(slam.poses)
@@ -263,19 +288,34 @@ def refine_poses(slam: FastSlam, beams: Beams) -> NDArray[np.bool_]:
     # 1. coarse: wide window on 4x4 cells
     turns = np.arange(-ka, ka + 1) * dth
     start = slam.poses
-    prior = np.array([cfg.match_xy_range, cfg.match_xy_range, cfg.match_theta_range]) / 2
+    if prior is None:
+        centre = start
+        spread = np.array([cfg.match_xy_range, cfg.match_xy_range, cfg.match_theta_range]) / 2
+    else:
+        centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
     m = len(local)
     few = local[::COARSE_EVERY]  # the wide coarse search is the costliest: fewer end points
     pose, _ = _pick(_grid_search(quarter, w_origin, coarse, start, turns, few, k0),
-                    start, turns, k0, coarse, start, prior, len(few))
+                    start, turns, k0, coarse, centre, spread, len(few))
     # 2. the best coarse cell again on 2x2 cells, then on the map's own cells
     turns = np.array([-0.5, 0.0, 0.5]) * dth
     pose, _ = _pick(_grid_search(half, w_origin, 2 * res, pose, turns, local, 2),
-                    pose, turns, 2, 2 * res, start, prior, m)
+                    pose, turns, 2, 2 * res, centre, spread, m)
     turns = np.array([-0.25, 0.0, 0.25]) * dth
     scores = _grid_search(grid.logodds, grid.origin, res, pose, turns, local, 1)
-    pose, _ = _pick(scores, pose, turns, 1, res, start, prior, m)
-    # 3. hill climbing on the interpolated evidence, steps halving when stuck
+    pose, _ = _pick(scores, pose, turns, 1, res, centre, spread, m)
+    if cfg.match_refine == "icp":
+        pose = _icp(grid, pose, local, _normals(beams, sel), centre, spread)
+    else:
+        pose = _hill_climb(grid, pose, local, dth)
+    return _accept(slam, pose, local, half, w_origin, known)
+
+
+def _hill_climb(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64],
+                dth: float) -> NDArray[np.float64]:
+    """3. hill climbing on the interpolated evidence, steps halving when stuck."""
+    n = len(pose)
+    res = grid.resolution
     best = _bilinear_scores(grid.logodds, grid.origin, res, pose[:, None, :], local)[:, 0]
     step = np.tile([res / 2, res / 2, dth / 8], (n, 1))
     moves = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
@@ -288,6 +328,15 @@ def refine_poses(slam: FastSlam, beams: Beams) -> NDArray[np.bool_]:
         pose[up] = cand[up, j[up]]
         best = np.where(up, top, best)
         step[~up] *= 0.5
+    return pose
+
+
+def _accept(slam: FastSlam, pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],
+            w_origin: NDArray[np.float64], known: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """Moves the particles with a trusted match to a sample around it; returns which."""
+    cfg = slam.cfg
+    n = len(pose)
+    res = slam.grid.resolution
     # trust: share of end points on an occupied 2x2 cell at the matched pose
     x, y = _world(pose, local)
     cx = np.clip(((x - w_origin[0]) / (2 * res)).astype(np.int64), 0, half.shape[2] - 1)
@@ -303,6 +352,96 @@ def refine_poses(slam: FastSlam, beams: Beams) -> NDArray[np.bool_]:
     sample[:, 2] = wrap_angle(sample[:, 2])
     slam.poses[trusted] = sample[trusted]
     return trusted
+
+
+def _normals(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
+    """(M, 2) unit normals (robot frame) of the surface at the selected end points, from
+    the returns on either side in the whole scan; zeros where those are missing or
+    farther apart than NORMAL_GAP (a corner, an edge, a lone return)."""
+    hit = beams.hit
+    r = np.where(hit, beams.ranges, np.nan)
+    pts = np.stack([beams.mount[0] + r * np.cos(beams.angles), beams.mount[1] + r * np.sin(beams.angles)], 1)
+    prev = pts[np.maximum(sel - 1, 0)]
+    nxt = pts[np.minimum(sel + 1, len(r) - 1)]
+    tangent = nxt - prev
+    length = np.hypot(tangent[:, 0], tangent[:, 1])
+    ok = (sel > 0) & (sel < len(r) - 1) & (length > 0) & (length < NORMAL_GAP)
+    ok &= np.isfinite(length)
+    out = np.zeros((len(sel), 2))
+    out[ok] = np.stack([-tangent[ok, 1], tangent[ok, 0]], 1) / length[ok, None]
+    return out
+
+
+def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
+         centre: NDArray[np.float64], spread: NDArray[np.float64]) -> NDArray[np.float64]:
+    """3. Gauss-Newton steps on the distances from the end points to the centres of their
+    nearest occupied cells (a weighted mean of them), measured along the surface normal where the scan gives one
+    (normals (M, 2), robot frame; zero: the whole distance), plus the Gaussian prior
+    (centre (N, 3), spread (3,) along, across, heading).
+
+    Unlike the evidence, a cell centre does not care how often the cell was hit, and
+    the prior keeps directions the scan cannot tell where odometry put them: along a
+    corridor the hill climb drifted backwards by ~1 % of the distance (the cells seen
+    longest are behind the robot). Along the surface the distance is left out, or cell
+    centres would pull the end points along walls.
+    """
+    n = len(pose)
+    res = grid.resolution
+    h, w = grid.shape
+    d = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
+    ox, oy = (v.reshape(-1) for v in np.meshgrid(d, d))
+    cells = grid.logodds.reshape(-1)
+    # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
+    info = np.zeros((n, 3, 3))
+    c0, s0 = np.cos(centre[:, 2]), np.sin(centre[:, 2])
+    ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
+    info[:, 0, 0] = ia * c0 ** 2 + ic * s0 ** 2
+    info[:, 1, 1] = ia * s0 ** 2 + ic * c0 ** 2
+    info[:, 0, 1] = info[:, 1, 0] = (ia - ic) * c0 * s0
+    info[:, 2, 2] = 1.0 / spread[2] ** 2
+    # per end point 2x2 weight: n n^T on a surface, the identity without a normal
+    has_normal = np.any(normals != 0, axis=1)
+    pose = pose.copy()
+    rows = np.arange(n)[:, None, None] * h
+    for _ in range(ICP_ITERATIONS):
+        c, s = np.cos(pose[:, 2, None]), np.sin(pose[:, 2, None])
+        rx = c * local[:, 0] - s * local[:, 1]                         # (N, M) end point - position
+        ry = s * local[:, 0] + c * local[:, 1]
+        u = (pose[:, 0, None] + rx - grid.origin[0]) / res
+        v = (pose[:, 1, None] + ry - grid.origin[1]) / res
+        cx = np.floor(u).astype(np.int64)[..., None] + ox              # (N, M, O)
+        cy = np.floor(v).astype(np.int64)[..., None] + oy
+        inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
+        flat = (rows + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
+        occupied = (cells.take(flat) > 0) & inside
+        ex = u[..., None] - (cx + 0.5)                                 # end point - cell centre [cells]
+        ey = v[..., None] - (cy + 0.5)
+        # The target is the Gaussian-weighted mean of the occupied centres nearby, not
+        # the nearest one: a wall two cells thick has its surface between its rows.
+        near = np.where(occupied, np.exp(-0.5 / ICP_SPREAD ** 2 * (ex * ex + ey * ey)), 0.0)
+        total = near.sum(axis=2)
+        found = total > 1e-6                                           # (N, M)
+        total = np.maximum(total, 1e-6)
+        err = np.stack([(near * ex).sum(2) / total, (near * ey).sum(2) / total], -1) * res
+        nx = c * normals[:, 0] - s * normals[:, 1]                     # normals in the map frame
+        ny = s * normals[:, 0] + c * normals[:, 1]
+        weight = np.zeros(found.shape + (2, 2))
+        weight[..., 0, 0] = np.where(has_normal, nx * nx, 1.0)
+        weight[..., 1, 1] = np.where(has_normal, ny * ny, 1.0)
+        weight[..., 0, 1] = weight[..., 1, 0] = np.where(has_normal, nx * ny, 0.0)
+        weight *= (found / ICP_SIGMA ** 2)[..., None, None]
+        jac = np.zeros(found.shape + (2, 3))                           # d(end point)/d(x, y, theta)
+        jac[..., 0, 0] = jac[..., 1, 1] = 1.0
+        jac[..., 0, 2] = -ry
+        jac[..., 1, 2] = rx
+        wj = weight @ jac                                              # (N, M, 2, 3)
+        hess = np.einsum("nmki,nmkj->nij", jac, wj) + info
+        off = pose - centre
+        off[:, 2] = wrap_angle(off[:, 2])
+        grad = np.einsum("nmki,nmk->ni", wj, err) + (info @ off[..., None])[..., 0]
+        pose -= np.linalg.solve(hess, grad[..., None])[..., 0]
+    pose[:, 2] = wrap_angle(pose[:, 2])
+    return pose
 
 
 def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, *,

@@ -17,7 +17,7 @@ from . import raycast
 from .config import SlamConfig
 from .geometry import circular_mean, compose, wrap_angle
 from .grid import GridMaps
-from .motion import sample_motion_assignment, sample_motion_odometry
+from .motion import odometry_std, sample_motion_assignment, sample_motion_odometry
 from .resample import low_variance_indices, neff, slot_parents
 from .scan import Beams, Scan, select_beams
 from .weights import assignment_log_weights, likelihood_log_weights, normalise_log
@@ -72,6 +72,8 @@ class FastSlam:
         self.best = 0
         self.updates = 0
         self._odom: NDArray[np.float64] | None = None
+        self._predicted = self.poses.copy()          # noise-free motion of the last update
+        self._motion_std = np.zeros(3)               # and its spread (match_prior: motion)
         self._stamp = -np.inf
         self._hist_poses: list[NDArray[np.float64]] = []
         self._hist_parent: list[NDArray[np.intp]] = []
@@ -135,11 +137,20 @@ class FastSlam:
     def _move(self, odom: NDArray) -> None:
         cfg = self.cfg
         assert self._odom is not None
+        alphas = (cfg.srr, cfg.srt, cfg.str, cfg.stt)
+        if cfg.proposal == "scan_match" and cfg.match_prior == "motion":
+            # The matcher's prior: the noise-free prediction and its spread (no random draw).
+            self._predicted = self.poses.copy()
+            if cfg.motion_model == "assignment":
+                sample_motion_assignment(self._predicted, self._odom, odom, np.zeros(3), self.rng)
+                self._motion_std = np.asarray(cfg.motion_sigmas, dtype=np.float64)
+            else:
+                sample_motion_odometry(self._predicted, self._odom, odom, alphas, False, self.rng)
+                self._motion_std = odometry_std(self._odom, odom, alphas)
         if cfg.motion_model == "assignment":
             sample_motion_assignment(self.poses, self._odom, odom, cfg.motion_sigmas, self.rng)
         else:
-            sample_motion_odometry(self.poses, self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt),
-                                   bool(cfg.toggle_noise), self.rng)
+            sample_motion_odometry(self.poses, self._odom, odom, alphas, bool(cfg.toggle_noise), self.rng)
 
     def _cover_beams(self) -> tuple[bool, bool]:
         """Grows the maps so every particle's beams stay inside; or reports clipping."""
@@ -163,7 +174,8 @@ class FastSlam:
     def _propose(self, beams: Beams) -> int:
         from .scanmatch import refine_poses  # improved mode only
 
-        return int(refine_poses(self, beams).sum())
+        prior = (self._predicted, self._motion_std) if self.cfg.match_prior == "motion" else None
+        return int(refine_poses(self, beams, prior=prior).sum())
 
     def _observe(self, beams: Beams) -> None:
         """Weighs every particle against its map before this scan, then writes the scan in."""

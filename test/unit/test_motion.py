@@ -55,3 +55,16 @@ def test_compose_inverse_round_trip():
     a = np.array([1.0, -2.0, 2.5])
     np.testing.assert_allclose(compose(a, inverse(a)), ZERO, atol=1e-12)
     np.testing.assert_allclose(compose([1, 0, np.pi / 2], [1, 0, 0]), [1, 1, np.pi / 2], atol=1e-12)
+
+
+def test_odometry_std_hand_computed():
+    from fastslam.motion import odometry_std
+
+    # 0.5 m straight ahead, then a 0.2 rad turn: rot1 = 0, trans = 0.5, rot2 = 0.2
+    alphas = (0.1, 0.02, 0.05, 0.1)                    # srr, srt, str, stt
+    std = odometry_std(np.zeros(3), np.array([0.5, 0.0, 0.2]), alphas)
+    s_rot1 = 0.1 * 0.0 + 0.05 * 0.5                     # 0.025 rad
+    s_trans = 0.1 * 0.5 + 0.02 * (0.0 + 0.2)            # 0.054 m
+    s_rot2 = 0.1 * 0.2 + 0.05 * 0.5                     # 0.045 rad
+    np.testing.assert_allclose(std, [s_trans, 0.5 * s_rot1, np.hypot(s_rot1, s_rot2)])
+    np.testing.assert_array_equal(odometry_std(np.zeros(3), np.zeros(3), alphas), np.zeros(3))

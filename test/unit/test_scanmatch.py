@@ -110,3 +110,75 @@ def test_returns_subset_spreads_the_returns_evenly():
     idx = np.searchsorted(beams.angles, sub.angles)
     assert idx[0] == np.flatnonzero(hit)[0] and idx[-1] == np.flatnonzero(hit)[-1]
     assert len(returns_subset(beams, 500).ranges) == 66
+
+
+def _corridor_grid() -> GridMaps:
+    """Two walls along x, one cell thick, centres at y = -0.525 and 0.525."""
+    grid = GridMaps(1, (60, 120), 0.05, (-3.0, -1.5))
+    grid.logodds[0, [19, 40], :] = 50
+    return grid
+
+
+def _wall_points(xs: np.ndarray) -> np.ndarray:
+    """End points (robot frame) on both corridor walls seen from the origin."""
+    return np.concatenate([np.stack([xs, np.full_like(xs, 0.525)], 1), np.stack([xs, np.full_like(xs, -0.525)], 1)])
+
+
+def test_icp_leaves_the_corridor_direction_to_the_prior():
+    # Along a corridor the scan cannot tell x: the result stays at the prior's centre
+    # (odometry's word), while y and the heading come from the walls.
+    grid = _corridor_grid()
+    local = _wall_points(np.linspace(-1.0, 1.0, 21))
+    centre = np.array([[0.03, 0.02, 0.01]])            # odometry: 3 cm ahead, 2 cm and 0.6 deg off
+    start = np.array([[0.06, 0.04, 0.02]])             # the particle's sample, further off
+    spread = np.array([0.05, 0.05, 0.05])
+    normals = np.tile([0.0, 1.0], (len(local), 1))     # walls along x
+    pose = scanmatch._icp(grid, start, local, normals, centre, spread)
+    assert pose[0, 0] == pytest.approx(0.03, abs=0.003)
+    assert abs(pose[0, 1]) < 0.003
+    assert abs(pose[0, 2]) < 0.002
+
+
+def test_icp_refines_a_sub_cell_offset_in_the_room():
+    slam, _ = _mapped(particles=1)
+    truth = np.array([0.2, -0.3, 0.4])
+    beams = select_beams(_scan(truth), slam.cfg)
+    sel = scanmatch._spread_returns(beams, 60)
+    local = scanmatch._end_points(beams, sel)
+    start = truth + np.array([[0.04, -0.03, 0.02]])
+    spread = np.array([0.1, 0.1, 0.1])                 # a weak prior, centred on the start
+    pose = scanmatch._icp(slam.grid, start, local, scanmatch._normals(beams, sel), start, spread)
+    assert np.hypot(*(pose[0, :2] - truth[:2])) < 0.015
+    assert abs(pose[0, 2] - truth[2]) < np.radians(0.5)
+
+
+def test_motion_prior_is_tighter_along_the_heading():
+    # Scores flat everywhere: only the prior decides, and the prior along the heading
+    # (std 0.02) is tighter than across it (0.2), so the pick moves across, not along.
+    poses = np.array([[0.0, 0.0, np.pi / 2]])           # heading +y
+    scores = np.zeros((1, 1, 9), dtype=np.int64)
+    centre = np.array([[0.05, 0.05, np.pi / 2]])        # 5 cm off in x (across) and y (along)
+    out, _ = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.02, 0.2, 0.1]), 60)
+    np.testing.assert_allclose(out[0], [0.05, 0.05, np.pi / 2])
+    out, _ = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.2, 0.02, 0.1]), 60)
+    np.testing.assert_allclose(out[0], [0.05, 0.05, np.pi / 2])
+
+
+def test_matcher_with_the_motion_prior_and_icp_recovers_the_truth():
+    slam, _ = _mapped()
+    slam = _with(slam, match_prior="motion", match_refine="icp")
+    truth = np.array([0.2, -0.3, 0.4])
+    beams = select_beams(_scan(truth), slam.cfg)
+    centre = np.tile(truth + [0.03, -0.02, 0.02], (3, 1))              # odometry's prediction
+    slam.poses = centre + np.array([[0.1, 0.0, 0.05], [-0.08, 0.06, -0.04], [0.0, 0.0, 0.0]])
+    trusted = scanmatch.refine_poses(slam, beams, prior=(centre, np.array([0.05, 0.05, 0.05])))
+    assert trusted.all()
+    err = slam.poses - truth
+    assert np.abs(err[:, :2]).max() < 0.015
+    assert np.abs(err[:, 2]).max() < np.radians(0.5)
+
+
+def _with(slam: FastSlam, **changes) -> FastSlam:
+    """The same maps under a changed configuration."""
+    slam.cfg = slam.cfg.replace(**changes)
+    return slam

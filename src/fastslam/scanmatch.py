@@ -390,55 +390,59 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
     h, w = grid.shape
     d = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
     ox, oy = (v.reshape(-1) for v in np.meshgrid(d, d))
+    shift = oy * w + ox                                                # flat offsets of the kernel
+    ox, oy = ox.astype(np.float32), oy.astype(np.float32)              # float32 kernel arithmetic
     cells = grid.logodds.reshape(-1)
     # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
-    info = np.zeros((n, 3, 3))
     c0, s0 = np.cos(centre[:, 2]), np.sin(centre[:, 2])
     ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
-    info[:, 0, 0] = ia * c0 ** 2 + ic * s0 ** 2
-    info[:, 1, 1] = ia * s0 ** 2 + ic * c0 ** 2
-    info[:, 0, 1] = info[:, 1, 0] = (ia - ic) * c0 * s0
-    info[:, 2, 2] = 1.0 / spread[2] ** 2
-    # per end point 2x2 weight: n n^T on a surface, the identity without a normal
+    p_xx, p_yy, p_xy = ia * c0 ** 2 + ic * s0 ** 2, ia * s0 ** 2 + ic * c0 ** 2, (ia - ic) * c0 * s0
+    p_tt = 1.0 / spread[2] ** 2
     has_normal = np.any(normals != 0, axis=1)
     pose = pose.copy()
-    rows = np.arange(n)[:, None, None] * h
     for _ in range(ICP_ITERATIONS):
         c, s = np.cos(pose[:, 2, None]), np.sin(pose[:, 2, None])
         rx = c * local[:, 0] - s * local[:, 1]                         # (N, M) end point - position
         ry = s * local[:, 0] + c * local[:, 1]
         u = (pose[:, 0, None] + rx - grid.origin[0]) / res
         v = (pose[:, 1, None] + ry - grid.origin[1]) / res
-        cx = np.floor(u).astype(np.int64)[..., None] + ox              # (N, M, O)
-        cy = np.floor(v).astype(np.int64)[..., None] + oy
-        inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
-        flat = (rows + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
-        occupied = (cells.take(flat) > 0) & inside
-        ex = u[..., None] - (cx + 0.5)                                 # end point - cell centre [cells]
-        ey = v[..., None] - (cy + 0.5)
+        # cells within the kernel; clamped so every kernel cell is inside (the edge
+        # cells of the grid were never seen: nothing occupied to find there)
+        iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
+        iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
+        base = (np.arange(n)[:, None] * h + iv) * w + iu               # (N, M)
+        occupied = cells.take(base[..., None] + shift) > 0            # (N, M, O)
+        ex = (u - iu - 0.5).astype(np.float32)[..., None] - ox         # end point - cell centre [cells]
+        ey = (v - iv - 0.5).astype(np.float32)[..., None] - oy
         # The target is the Gaussian-weighted mean of the occupied centres nearby, not
         # the nearest one: a wall two cells thick has its surface between its rows.
-        near = np.where(occupied, np.exp(-0.5 / ICP_SPREAD ** 2 * (ex * ex + ey * ey)), 0.0)
+        near = np.exp(np.float32(-0.5 / ICP_SPREAD ** 2) * (ex * ex + ey * ey)) * occupied
         total = near.sum(axis=2)
         found = total > 1e-6                                           # (N, M)
-        total = np.maximum(total, 1e-6)
-        err = np.stack([(near * ex).sum(2) / total, (near * ey).sum(2) / total], -1) * res
+        total = np.maximum(total, 1e-6) / res
+        gx = (near * ex).sum(2) / total                                # target offsets [m]
+        gy = (near * ey).sum(2) / total
+        # weights W = n n^T / sigma^2 on a surface, I / sigma^2 without a normal
         nx = c * normals[:, 0] - s * normals[:, 1]                     # normals in the map frame
         ny = s * normals[:, 0] + c * normals[:, 1]
-        weight = np.zeros(found.shape + (2, 2))
-        weight[..., 0, 0] = np.where(has_normal, nx * nx, 1.0)
-        weight[..., 1, 1] = np.where(has_normal, ny * ny, 1.0)
-        weight[..., 0, 1] = weight[..., 1, 0] = np.where(has_normal, nx * ny, 0.0)
-        weight *= (found / ICP_SIGMA ** 2)[..., None, None]
-        jac = np.zeros(found.shape + (2, 3))                           # d(end point)/d(x, y, theta)
-        jac[..., 0, 0] = jac[..., 1, 1] = 1.0
-        jac[..., 0, 2] = -ry
-        jac[..., 1, 2] = rx
-        wj = weight @ jac                                              # (N, M, 2, 3)
-        hess = np.einsum("nmki,nmkj->nij", jac, wj) + info
+        k = found / ICP_SIGMA ** 2
+        a = np.where(has_normal, nx * nx, 1.0) * k
+        b = np.where(has_normal, nx * ny, 0.0) * k
+        e = np.where(has_normal, ny * ny, 1.0) * k
+        # normal equations with J = [[1, 0, -ry], [0, 1, rx]] per end point
+        fx, fy = a * gx + b * gy, b * gx + e * gy                      # W err
         off = pose - centre
         off[:, 2] = wrap_angle(off[:, 2])
-        grad = np.einsum("nmki,nmk->ni", wj, err) + (info @ off[..., None])[..., 0]
+        hess = np.empty((n, 3, 3))
+        hess[:, 0, 0] = a.sum(1) + p_xx
+        hess[:, 1, 1] = e.sum(1) + p_yy
+        hess[:, 0, 1] = hess[:, 1, 0] = b.sum(1) + p_xy
+        hess[:, 0, 2] = hess[:, 2, 0] = (b * rx - a * ry).sum(1)
+        hess[:, 1, 2] = hess[:, 2, 1] = (e * rx - b * ry).sum(1)
+        hess[:, 2, 2] = (a * ry * ry - 2 * b * rx * ry + e * rx * rx).sum(1) + p_tt
+        grad = np.stack([fx.sum(1) + p_xx * off[:, 0] + p_xy * off[:, 1],
+                         fy.sum(1) + p_xy * off[:, 0] + p_yy * off[:, 1],
+                         (rx * fy - ry * fx).sum(1) + p_tt * off[:, 2]], axis=1)
         pose -= np.linalg.solve(hess, grad[..., None])[..., 0]
     pose[:, 2] = wrap_angle(pose[:, 2])
     return pose

@@ -130,24 +130,28 @@ def office_case(name: str, seed: int, world: str = "office") -> dict:
     if PARTICLES.get(name):
         overrides["particles"] = PARTICLES[name]
     cfg = SlamConfig.from_yaml(CONFIGS[name], overrides)
-    m = run(world, cfg, seed=seed).metrics()
-    return {"config": name, "seed": seed, "particles": cfg.particles, **m}
+    result = run(world, cfg, seed=seed)
+    return {"config": name, "seed": seed, "particles": cfg.particles, **result.metrics(),
+            "filter_s": result.seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
 def office_suite(seeds: tuple[int, ...] = (0, 1, 2),
                  configs: tuple[str, ...] = ("improved", "assignment")) -> list[dict]:
     """The office loop in the simulator for each configuration and seed; prints a table
     of the best particle's trajectory RMS error against the simulator's truth."""
-    print("Simulated office loop (LDS-01 3.5 m, noisy odometry)")
-    print(f"{'config':<15} {'seed':>4} {'N':>3} {'RMS m':>7} {'max m':>7} {'odom m':>7} {'ms/upd':>7}")
+    print("Simulated office loop (LDS-01 3.5 m, noisy odometry); filter s: time spent in the filter")
+    print(f"{'config':<15} {'seed':>4} {'N':>3} {'RMS m':>7} {'max m':>7} {'odom m':>7} {'updates':>7} "
+          f"{'ms/upd':>7} {'filter s':>8} {'peak MB':>7}")
     rows = []
     for name in configs:
         for seed in seeds:
-            r = office_case(name, seed)
+            out = subprocess.run([sys.executable, "-m", "fastslam.bench_accuracy", "--office-case",
+                                  json.dumps([name, seed])], capture_output=True, text=True, check=True)
+            r = json.loads(out.stdout)
             rows.append(r)
             print(f"{name:<15} {seed:>4} {r['particles']:>3} {r['trajectory_rms_m']:>7.3f} "
-                  f"{r['trajectory_max_m']:>7.3f} {r['dead_reckoning_rms_m']:>7.3f} {r['ms_per_update']:>7.1f}",
-                  flush=True)
+                  f"{r['trajectory_max_m']:>7.3f} {r['dead_reckoning_rms_m']:>7.3f} {r['updates']:>7} "
+                  f"{r['ms_per_update']:>7.1f} {r['filter_s']:>8.1f} {r['peak_mb']:>7.0f}", flush=True)
     for name in configs:
         rms = [r["trajectory_rms_m"] for r in rows if r["config"] == name]
         print(f"{name}: median trajectory RMS {np.median(rms):.3f} m over seeds {list(seeds)}")
@@ -161,7 +165,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--configs", nargs="+", default=["improved", "assignment"], choices=sorted(CONFIGS))
     parser.add_argument("--office", action="store_true", help="the simulated office loop instead of Intel")
     parser.add_argument("--case", help=argparse.SUPPRESS)
+    parser.add_argument("--office-case", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.office_case:
+        name, seed = json.loads(args.office_case)
+        print(json.dumps(office_case(name, seed)))
+        return 0
     if args.case:
         name, seed, level = json.loads(args.case)
         print(json.dumps(intel_case(name, seed, level=level)))

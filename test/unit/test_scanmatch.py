@@ -182,3 +182,13 @@ def _with(slam: FastSlam, **changes) -> FastSlam:
     """The same maps under a changed configuration."""
     slam.cfg = slam.cfg.replace(**changes)
     return slam
+
+
+def test_normals_are_perpendicular_to_the_wall_and_missing_at_gaps():
+    # A wall at x = 1 seen from the origin, then one lone return far behind it.
+    angles = np.radians(np.array([-10.0, -5.0, 0.0, 5.0, 10.0, 40.0]))
+    ranges = np.concatenate([1.0 / np.cos(angles[:5]), [3.0]])
+    beams = Beams(angles=angles, ranges=ranges, hit=np.ones(6, dtype=bool), free_range=ranges, range_min=0.1)
+    normals = scanmatch._normals(beams, np.arange(6))
+    np.testing.assert_array_equal(normals[[0, 4, 5]], np.zeros((3, 2)))   # an end of the scan, a gap
+    np.testing.assert_allclose(np.abs(normals[1:4]), [[1.0, 0.0]] * 3, atol=1e-12)

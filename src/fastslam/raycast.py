@@ -8,6 +8,7 @@ update both read these cells: a measured range z ends at step round(z / R * n).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -193,9 +194,9 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
                      first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer], NDArray[np.integer]]:
     """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
-    k = np.arange(rays.flat.shape[2], dtype=np.int32)  # steps fit int32: faster comparisons
-    free_mask = np.less(k, free_until.astype(np.int32)[..., None])
-    free_mask &= np.greater_equal(k, first_step.astype(np.int32)[..., None])
+    table = _prefix_masks(rays.flat.shape[2])  # see _free_of
+    free_mask = np.take(table, free_until, axis=0, mode="clip")
+    free_mask &= ~np.take(table, first_step, axis=0, mode="clip")
     if not rays.inside:
         free_mask &= rays.flat >= 0
     free = rays.flat[free_mask]
@@ -284,40 +285,42 @@ def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[n
     first_step = np.ceil(range_min / r * lines.steps).astype(np.int64)
     bounds = np.cumsum([0] + [len(sel) for sel in parts])
     groups = [lines.beams(slice(i, j)) for i, j in zip(bounds[:-1], bounds[1:])]
-    # One index array for all groups (no concatenation); a group fills at most n * M * K.
-    out = scratch("raycast_free", (sum(ln.steps.size * ln.k_max for ln in groups),), lines.base.dtype)
-    used = 0
-    hit_cells = []
+    free, hit_cells = [], []
     for i, (ln, sel) in enumerate(zip(groups, parts)):
         g = slice(bounds[i], bounds[i + 1])
         if ln.inside:
-            flat = _flat_inside(ln, grid.shape[1], scratch("raycast_flat", ln.steps.shape + (ln.k_max,), out.dtype))
-            used += _compress_free(flat, until[:, g], first_step[:, g], out[used:])
+            flat = _flat_inside(ln, grid.shape[1], scratch("raycast_flat", ln.steps.shape + (ln.k_max,), ln.base.dtype))
+            free.append(_free_of(flat, until[:, g], first_step[:, g]))
             cells = np.take_along_axis(flat, np.maximum(hit_step[:, g], 0)[..., None], axis=2)[..., 0]
             hit_cells.append(cells[hit_step[:, g] >= 0])
         else:
             rays = trace(grid, origins, angles[:, sel], float(r[bounds[i]]), first=first)
             f, h = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
-            out[used:used + len(f)] = f
-            used += len(f)
+            free.append(f)
             hit_cells.append(h)
     # _apply indexes faster with intp; the narrow type made the passes above cheaper.
-    free = scratch("raycast_free_intp", (used,), np.intp)
-    free[...] = out[:used]
-    return free, hit_cells
+    out = scratch("raycast_free", (sum(len(f) for f in free),), np.intp)
+    return np.concatenate(free, out=out), hit_cells
 
 
-def _compress_free(flat: NDArray[np.integer], until: NDArray[np.int64], first_step: NDArray[np.int64],
-                   out: NDArray[np.integer]) -> int:
-    """Writes the cells of steps first_step <= k < until of flat (n, M, K) to the start
-    of out; returns how many."""
-    k = np.arange(flat.shape[2], dtype=np.int32)  # steps fit int32: faster comparisons
-    mask = np.less(k, until.astype(np.int32)[..., None], out=scratch("raycast_mask", flat.shape, np.bool_))
+def _free_of(flat: NDArray[np.integer], until: NDArray[np.int64], first_step: NDArray[np.int64]
+             ) -> NDArray[np.integer]:
+    """The cells of steps first_step <= k < until of flat (n, M, K)."""
+    # Row u of the table is the mask k < u: one row copied per beam, cheaper than a
+    # comparison broadcast over every step ("clip" clips u to 0 .. K).
+    table = _prefix_masks(flat.shape[2])
+    mask = np.take(table, until, axis=0, out=scratch("raycast_mask", flat.shape, np.bool_), mode="clip")
     if first_step.any():
-        mask &= np.greater_equal(k, first_step.astype(np.int32)[..., None])
-    count = int(np.count_nonzero(mask))
-    np.compress(mask.reshape(-1), flat.reshape(-1), out=out[:count])
-    return count
+        mask &= ~np.take(table, first_step, axis=0, mode="clip")
+    return flat[mask]  # boolean indexing: much faster than np.compress with out
+
+
+@functools.lru_cache(maxsize=64)
+def _prefix_masks(k_max: int) -> NDArray[np.bool_]:
+    """(K + 1, K) table whose row u is arange(K) < u."""
+    table = np.greater.outer(np.arange(k_max + 1), np.arange(k_max))
+    table.flags.writeable = False
+    return table
 
 
 def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],

@@ -215,7 +215,8 @@ def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], 
         free = free.astype(np.intp, copy=False)
         hit = hit.astype(np.intp, copy=False)
         before = cells[hit]  # hit cells take l_occ alone: read them first
-        f = cells[free]
+        # take with mode="wrap" reads what cells[free] reads, a little faster.
+        f = np.take(cells, free, mode="wrap")
         np.maximum(f, l_min - l_free, out=f)
         f += np.int8(l_free)
         # Assigning through repeated indices writes once: one update per cell per scan.

@@ -360,7 +360,10 @@ def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams,
     # a reduction over runs: the same float64 values as over the full (N, S, O) array.
     found = np.flatnonzero(occupied)
     point, j = np.divmod(found, len(ox))                        # end point (n * S + s), offset
-    d2 = (ox[j] - fx.reshape(-1)[point]) ** 2 + (oy[j] - fy.reshape(-1)[point]) ** 2
+    # float64 before the gathers (exact): no mixed int64 - float32 arithmetic after.
+    dx = ox.astype(np.float64).take(j) - fx.astype(np.float64).reshape(-1).take(point)
+    dy = oy.astype(np.float64).take(j) - fy.astype(np.float64).reshape(-1).take(point)
+    d2 = np.square(dx, out=dx) + np.square(dy, out=dy)
     least = np.full(ix.size, np.inf)
     if len(found):
         runs = np.flatnonzero(np.concatenate(([True], point[1:] != point[:-1])))

@@ -108,9 +108,13 @@ class GridMaps:
     def reorder(self, parent: NDArray[np.intp]) -> None:
         """Slot s takes the map of slot parent[s]; only slots that change are copied."""
         moved = np.flatnonzero(parent != np.arange(len(parent)))
-        if len(moved):
-            # Sources are slots that keep their own map, so reading them is safe.
-            self.logodds[moved] = self.logodds[parent[moved]]
+        if np.isin(parent[moved], moved).any():
+            self.logodds[moved] = self.logodds[parent[moved]]  # read every source first
+            return
+        # Sources keep their own map (as slot_parents assigns them): copy map by map,
+        # without a temporary the size of all moved maps.
+        for slot in moved:
+            np.copyto(self.logodds[slot], self.logodds[parent[slot]])
 
     def probability(self, n: int) -> NDArray[np.float64]:
         """(H, W) occupancy probability of particle n's map."""

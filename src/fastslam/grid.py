@@ -9,12 +9,27 @@ limits set the scale, so l_min..l_max always fit in -127..127.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 from numpy.typing import NDArray
 
 LOGODDS_DTYPE = np.int8
 QMAX = 127
+
+_scratch = threading.local()
+
+
+def scratch(key: str, shape: tuple[int, ...], dtype: type | np.dtype) -> NDArray:
+    """A work array of this shape, contents undefined, reused by the next call with
+    the same key (per thread): a large temporary allocated afresh every scan costs a
+    page fault per 4 KiB page, which in a VM costs more than the arithmetic on it."""
+    arrays = _scratch.__dict__.setdefault("arrays", {})
+    size = math.prod(shape)
+    buf = arrays.get(key)
+    if buf is None or buf.dtype != dtype or buf.size < size:
+        buf = arrays[key] = np.empty(size + size // 4, dtype)  # headroom: sizes vary a little
+    return buf[:size].reshape(shape)
 
 
 class GridMaps:
@@ -93,9 +108,13 @@ class GridMaps:
     def reorder(self, parent: NDArray[np.intp]) -> None:
         """Slot s takes the map of slot parent[s]; only slots that change are copied."""
         moved = np.flatnonzero(parent != np.arange(len(parent)))
-        if len(moved):
-            # Sources are slots that keep their own map, so reading them is safe.
-            self.logodds[moved] = self.logodds[parent[moved]]
+        if np.isin(parent[moved], moved).any():
+            self.logodds[moved] = self.logodds[parent[moved]]  # read every source first
+            return
+        # Sources keep their own map (as slot_parents assigns them): copy map by map,
+        # without a temporary the size of all moved maps.
+        for slot in moved:
+            np.copyto(self.logodds[slot], self.logodds[parent[slot]])
 
     def probability(self, n: int) -> NDArray[np.float64]:
         """(H, W) occupancy probability of particle n's map."""

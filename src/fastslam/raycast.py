@@ -8,12 +8,13 @@ update both read these cells: a measured range z ends at step round(z / R * n).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .grid import GridMaps
+from .grid import GridMaps, scratch
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
@@ -39,8 +40,7 @@ class Rays:
 
     def step_of_range(self, ranges: NDArray) -> NDArray[np.int64]:
         """(n, M) step at which a range (M,) or (n, M) ends, clipped to the beam."""
-        k = np.rint(np.asarray(ranges) / self.max_range * self.steps)
-        return np.minimum(k, self.steps).astype(np.int64)
+        return _step_of_range(self.steps, self.max_range, ranges)
 
     def range_of_step(self, k: NDArray) -> NDArray[np.float64]:
         """(n, M) distance from the origin of step k (n, M) of each beam [m]."""
@@ -49,6 +49,82 @@ class Rays:
     def first_step_at(self, distance: float) -> NDArray[np.int64]:
         """(n, M) first step of each beam at least this far from its origin."""
         return np.ceil(distance / self.max_range * self.steps).astype(np.int64)
+
+
+def _step_of_range(steps: NDArray[np.int64], max_range: float, ranges: NDArray) -> NDArray[np.int64]:
+    k = np.rint(np.asarray(ranges) / max_range * steps)
+    return np.minimum(k, steps).astype(np.int64)
+
+
+@dataclass
+class _Lines:
+    """The digital lines of M beams for n particles, before any cell is listed:
+    step k of a beam is cell base + rint(slope_x k) + rint(slope_y k) * w."""
+
+    start: NDArray[np.int64]      # (n, 2) cell of each origin
+    steps: NDArray[np.int64]      # (n, M)
+    slope: NDArray[np.float32]    # (n, M, 2)
+    base: NDArray[np.integer]     # (n,) flat index of each start cell
+    shape: tuple[int, int]        # (H, W) of the grid
+
+    @property
+    def k_max(self) -> int:
+        """Steps 0 .. k_max - 1 are traced."""
+        return int(self.steps.max()) + 1
+
+    @property
+    def inside(self) -> bool:
+        """Every traced cell lies in the grid."""
+        # Cells of step k lie within k cells (Chebyshev) of the start: a box of k_max
+        # cells around every start decides whether any cell can fall outside.
+        k, (h, w) = self.k_max, self.shape
+        return bool(self.start.min() >= k and self.start[:, 0].max() + k < w and self.start[:, 1].max() + k < h)
+
+    def beams(self, sel: slice) -> _Lines:
+        """The lines of the beams sel."""
+        return _Lines(start=self.start, steps=self.steps[:, sel], slope=self.slope[:, sel],
+                      base=self.base, shape=self.shape)
+
+
+def _lines(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
+           max_range: float | NDArray[np.float64], first: int) -> _Lines:
+    """The lines of trace; max_range: one length, or one per beam (M,)."""
+    n_p, m = angles.shape
+    h, w = grid.shape
+    start = grid.world_to_cell(origins)                                   # (n, 2)
+    # x and y apart: the same values as on stacked (..., 2) arrays, without the
+    # slow reductions over an axis of two.
+    dx = _to_cell(origins[:, 0, None] + max_range * np.cos(angles), grid.origin[0], grid.resolution)
+    dy = _to_cell(origins[:, 1, None] + max_range * np.sin(angles), grid.origin[1], grid.resolution)
+    dx -= start[:, 0, None]
+    dy -= start[:, 1, None]
+    steps = np.maximum(np.abs(dx), np.abs(dy))                            # (n, M)
+    div = np.maximum(steps, 1)
+    slope = np.empty((n_p, m, 2), dtype=np.float32)
+    np.divide(dx, div, out=slope[..., 0], casting="unsafe")  # float64 quotient, then float32
+    np.divide(dy, div, out=slope[..., 1], casting="unsafe")
+    index_type = np.int32 if grid.logodds.size < np.iinfo(np.int32).max else np.int64
+    base = (((first + np.arange(n_p)) * h + start[:, 1]) * w + start[:, 0]).astype(index_type)
+    return _Lines(start=start, steps=steps, slope=slope, base=base, shape=(h, w))
+
+
+def _to_cell(v: NDArray[np.float64], origin: float, resolution: float) -> NDArray[np.int64]:
+    """GridMaps.world_to_cell of one coordinate."""
+    return np.floor((v - origin) / resolution).astype(np.int64)
+
+
+def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer]) -> NDArray[np.integer]:
+    """out (n, M, K): flat index of every step of lines that lie inside the grid."""
+    k = np.arange(out.shape[2], dtype=np.float32)
+    fx = np.multiply(lines.slope[..., 0, None], k, out=scratch("raycast_fx", out.shape, np.float32))
+    np.rint(fx, out=fx)
+    fy = np.multiply(lines.slope[..., 1, None], k, out=scratch("raycast_fy", out.shape, np.float32))
+    np.rint(fy, out=fy)
+    fy *= np.float32(w)
+    fx += fy  # exact: |value| < 2**24
+    np.copyto(out, fx, casting="unsafe")
+    out += lines.base[:, None, None]
+    return out
 
 
 def trace(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
@@ -62,30 +138,18 @@ def trace(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float
         max_range: beam length [m].
         first: the particles traced are first .. first + n - 1.
     """
-    n_p, m = angles.shape
     h, w = grid.shape
-    start = grid.world_to_cell(origins)                                   # (n, 2)
-    ends = origins[:, None, :] + max_range * np.stack([np.cos(angles), np.sin(angles)], -1)
-    delta = grid.world_to_cell(ends) - start[:, None, :]                  # (n, M, 2)
-    steps = np.abs(delta).max(axis=-1)                                    # (n, M)
-    k_max = int(steps.max()) + 1
-    slope = (delta / np.maximum(steps, 1)[..., None]).astype(np.float32)  # (n, M, 2)
-    index_type = np.int32 if grid.logodds.size < np.iinfo(np.int32).max else np.int64
-    base = (((first + np.arange(n_p)) * h + start[:, 1]) * w + start[:, 0]).astype(index_type)
-    k = np.arange(k_max, dtype=np.float32)
-    # Cells of step k lie within k cells (Chebyshev) of the start: a box of k_max cells
-    # around every start decides whether any cell can fall outside.
-    inside = bool(np.all(start >= k_max) and np.all(start[:, 0] + k_max < w) and np.all(start[:, 1] + k_max < h))
+    lines = _lines(grid, origins, angles, max_range, first)
+    start, slope, base, steps = lines.start, lines.slope, lines.base, lines.steps
+    index_type = base.dtype
+    k = np.arange(lines.k_max, dtype=np.float32)
+    if lines.inside:
+        flat = _flat_inside(lines, w, np.empty(steps.shape + (len(k),), dtype=index_type))
+        return Rays(flat=flat, steps=steps, max_range=float(max_range), inside=True)
     fx = np.multiply(slope[..., 0, None], k)                              # (n, M, K) float32
     np.rint(fx, out=fx)
     fy = np.multiply(slope[..., 1, None], k)
     np.rint(fy, out=fy)
-    if inside:
-        fy *= np.float32(w)
-        fx += fy  # exact: |value| < 2**24
-        flat = fx.astype(index_type)
-        flat += base[:, None, None]
-        return Rays(flat=flat, steps=steps, max_range=float(max_range), inside=True)
     ix = start[:, 0, None, None] + fx.astype(index_type)
     iy = start[:, 1, None, None] + fy.astype(index_type)
     flat = base[:, None, None] + (ix - start[:, 0, None, None]) + (iy - start[:, 1, None, None]) * w
@@ -130,9 +194,9 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
                      first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer], NDArray[np.integer]]:
     """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
-    k = np.arange(rays.flat.shape[2], dtype=np.int32)  # steps fit int32: faster comparisons
-    free_mask = np.less(k, free_until.astype(np.int32)[..., None])
-    free_mask &= np.greater_equal(k, first_step.astype(np.int32)[..., None])
+    table = _prefix_masks(rays.flat.shape[2])  # see _free_of
+    free_mask = np.take(table, free_until, axis=0, mode="clip")
+    free_mask &= ~np.take(table, first_step, axis=0, mode="clip")
     if not rays.inside:
         free_mask &= rays.flat >= 0
     free = rays.flat[free_mask]
@@ -151,7 +215,8 @@ def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], 
         free = free.astype(np.intp, copy=False)
         hit = hit.astype(np.intp, copy=False)
         before = cells[hit]  # hit cells take l_occ alone: read them first
-        f = cells[free]
+        # take with mode="wrap" reads what cells[free] reads, a little faster.
+        f = np.take(cells, free, mode="wrap")
         np.maximum(f, l_min - l_free, out=f)
         f += np.int8(l_free)
         # Assigning through repeated indices writes once: one update per cell per scan.
@@ -191,15 +256,8 @@ def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArr
     per_chunk = max(1, int(TRIM_CHUNK_ELEMENTS // (len(order) * k_mean)))
     for a in range(0, n_p, per_chunk):
         b = min(n_p, a + per_chunk)
-        free_cells, hit_cells = [], []
-        for sel in parts:
-            r = float(min(reach[sel].max(), max_range)) + grid.resolution
-            rays = trace(grid, origins[a:b], angles[a:b][:, sel], r, first=a)
-            hit_step = np.where(hit[sel], rays.step_of_range(ranges[sel]), -1)
-            until = np.where(hit[sel], hit_step, rays.step_of_range(free_range[sel]) + 1)
-            f, h = _cells_to_update(rays, until, hit_step, rays.first_step_at(range_min))
-            free_cells.append(f)
-            hit_cells.append(h)
+        free_cells, hit_cells = _group_cells(grid, origins[a:b], angles[a:b], parts, reach, ranges, hit,
+                                             free_range, max_range=max_range, range_min=range_min, first=a)
         if len(marked):
             a_m = angles[a:b][:, marked]
             ends = origins[a:b, None, :] + ranges[marked, None] * np.stack([np.cos(a_m), np.sin(a_m)], -1)
@@ -208,8 +266,62 @@ def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArr
             ok = (cell[..., 0] >= 0) & (cell[..., 0] < w_) & (cell[..., 1] >= 0) & (cell[..., 1] < h_)
             flat = ((np.arange(a, b)[:, None] * h_ + cell[..., 1]) * w_ + cell[..., 0])[ok]
             hit_cells.append(flat)
-        _apply(grid, np.concatenate(free_cells) if free_cells else np.zeros(0, np.int64),
-               np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), **l_units)
+        _apply(grid, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), **l_units)
+
+
+def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
+                 parts: list[NDArray[np.intp]], reach: NDArray[np.float64], ranges: NDArray[np.float64],
+                 hit: NDArray[np.bool_], free_range: NDArray[np.float64], *, max_range: float,
+                 range_min: float, first: int) -> tuple[NDArray[np.intp], list[NDArray[np.integer]]]:
+    """The cells to free (one intp array, repeats allowed) and the hit cells (per group)
+    of the beam groups `parts` for particles first .. first + n - 1."""
+    # All groups at once, each beam with its group's length: the same values as group
+    # by group, in fewer (small) numpy calls.
+    cols = np.concatenate(parts)
+    r = np.concatenate([np.full(len(sel), float(min(reach[sel].max(), max_range)) + grid.resolution)
+                        for sel in parts])
+    lines = _lines(grid, origins, angles[:, cols], r, first)
+    hit_step = np.where(hit[cols], _step_of_range(lines.steps, r, ranges[cols]), -1)
+    until = np.where(hit[cols], hit_step, _step_of_range(lines.steps, r, free_range[cols]) + 1)
+    first_step = np.ceil(range_min / r * lines.steps).astype(np.int64)
+    bounds = np.cumsum([0] + [len(sel) for sel in parts])
+    groups = [lines.beams(slice(i, j)) for i, j in zip(bounds[:-1], bounds[1:])]
+    free, hit_cells = [], []
+    for i, (ln, sel) in enumerate(zip(groups, parts)):
+        g = slice(bounds[i], bounds[i + 1])
+        if ln.inside:
+            flat = _flat_inside(ln, grid.shape[1], scratch("raycast_flat", ln.steps.shape + (ln.k_max,), ln.base.dtype))
+            free.append(_free_of(flat, until[:, g], first_step[:, g]))
+            cells = np.take_along_axis(flat, np.maximum(hit_step[:, g], 0)[..., None], axis=2)[..., 0]
+            hit_cells.append(cells[hit_step[:, g] >= 0])
+        else:
+            rays = trace(grid, origins, angles[:, sel], float(r[bounds[i]]), first=first)
+            f, h = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
+            free.append(f)
+            hit_cells.append(h)
+    # _apply indexes faster with intp; the narrow type made the passes above cheaper.
+    out = scratch("raycast_free", (sum(len(f) for f in free),), np.intp)
+    return np.concatenate(free, out=out), hit_cells
+
+
+def _free_of(flat: NDArray[np.integer], until: NDArray[np.int64], first_step: NDArray[np.int64]
+             ) -> NDArray[np.integer]:
+    """The cells of steps first_step <= k < until of flat (n, M, K)."""
+    # Row u of the table is the mask k < u: one row copied per beam, cheaper than a
+    # comparison broadcast over every step ("clip" clips u to 0 .. K).
+    table = _prefix_masks(flat.shape[2])
+    mask = np.take(table, until, axis=0, out=scratch("raycast_mask", flat.shape, np.bool_), mode="clip")
+    if first_step.any():
+        mask &= ~np.take(table, first_step, axis=0, mode="clip")
+    return flat[mask]  # boolean indexing: much faster than np.compress with out
+
+
+@functools.lru_cache(maxsize=64)
+def _prefix_masks(k_max: int) -> NDArray[np.bool_]:
+    """(K + 1, K) table whose row u is arange(K) < u."""
+    table = np.greater.outer(np.arange(k_max + 1), np.arange(k_max))
+    table.flags.writeable = False
+    return table
 
 
 def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],

@@ -228,12 +228,24 @@ def _pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[n
 
     Column pairs of a contiguous flag array are read as one uint16 each, row pairs
     as the two halves of a doubled row: cheaper than maxima of strided int8 views.
+    A few maps at a time, in reused work arrays: the temporaries stay in cache.
     """
+    from .grid import scratch
+
     n, h, w = level.shape
-    rows = np.maximum(level[:, 0::2, :], level[:, 1::2, :])
-    half = (rows > 0).view(np.uint16) != 0                                # (N, H/2, W/2)
-    pairs = half.reshape(n, h // 4, w)                                    # rows 2i, 2i+1 side by side
-    quarter = (pairs[:, :, :w // 2] | pairs[:, :, w // 2:]).view(np.uint16) != 0
+    maps = 8  # at a time
+    half = np.empty((n, h // 2, w // 2), dtype=np.bool_)
+    quarter = np.empty((n, h // 4, w // 4), dtype=np.bool_)
+    for a in range(0, n, maps):
+        b = min(n, a + maps)
+        rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
+                          out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
+        occupied = np.greater(rows, 0, out=rows.view(np.bool_))
+        np.not_equal(occupied.view(np.uint16), 0, out=half[a:b])
+        pairs = half[a:b].reshape(b - a, h // 4, w)                       # rows 2i, 2i+1 side by side
+        quads = np.bitwise_or(pairs[:, :, :w // 2], pairs[:, :, w // 2:],
+                              out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
+        np.not_equal(quads.view(np.uint16), 0, out=quarter[a:b])
     return half.view(np.int8), quarter.view(np.int8)
 
 
@@ -487,7 +499,18 @@ def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams,
         inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
         flat = (np.arange(n)[:, None, None] * h + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
         occupied = (grid.logodds.reshape(-1).take(flat) > 0) & inside
-    d2 = (ox - fx[..., None]) ** 2 + (oy - fy[..., None]) ** 2
-    nearest = np.sqrt(np.where(occupied, d2, np.inf).min(axis=2)) * res
+    # Distances to the occupied cells only (few of them), the least per end point by
+    # a reduction over runs: the same float64 values as over the full (N, S, O) array.
+    found = np.flatnonzero(occupied)
+    point, j = np.divmod(found, len(ox))                        # end point (n * S + s), offset
+    # float64 before the gathers (exact): no mixed int64 - float32 arithmetic after.
+    dx = ox.astype(np.float64).take(j) - fx.astype(np.float64).reshape(-1).take(point)
+    dy = oy.astype(np.float64).take(j) - fy.astype(np.float64).reshape(-1).take(point)
+    d2 = np.square(dx, out=dx) + np.square(dy, out=dy)
+    least = np.full(ix.size, np.inf)
+    if len(found):
+        runs = np.flatnonzero(np.concatenate(([True], point[1:] != point[:-1])))
+        least[point[runs]] = np.minimum.reduceat(d2, runs)
+    nearest = np.sqrt(least.reshape(ix.shape)) * res
     out[:, sel] = np.minimum(nearest, max_dist)
     return out

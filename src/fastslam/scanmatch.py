@@ -54,6 +54,7 @@ FREE_COST = 0          # an end point in known free space costs this many occupi
 # The motion prior never gets narrower than this: odometry of a standing robot still
 # errs by about half a cell, and the heading by a few tenths of a degree.
 PRIOR_FLOOR = np.array([0.025, 0.025, 0.01])    # along, across [m], heading [rad]
+SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further
 ICP_ITERATIONS = 3
 ICP_RADIUS = 2         # cells searched around each end point for the nearest occupied one
 ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
@@ -106,11 +107,12 @@ def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
 
 def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
                  poses: NDArray[np.float64], turns: NDArray[np.float64], local: NDArray[np.float64],
-                 k: int) -> NDArray[np.int64]:
+                 k: int, flags: bool = False) -> NDArray[np.int64]:
     """Scores (N, A, (2k+1)^2) of poses turned by turns (A,) and shifted by -k..k cells.
 
     level: (N, Hv, Wv) log-odds (only max(l, 0) counts) with cells of size `cell` and
-    lower-left corner `origin`. Candidate t = (dy + k) * (2k + 1) + (dx + k).
+    lower-left corner `origin`, or (flags) already the 0/1 cell scores. Candidate
+    t = (dy + k) * (2k + 1) + (dx + k).
     """
     n, hv, wv = level.shape
     cand = np.repeat(poses[:, None, :], len(turns), axis=1)
@@ -135,7 +137,7 @@ def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: flo
         np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
     # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
     acc = np.int8 if FREE_COST == 0 and len(local) < 128 else np.int16
-    sums = _cell_score(vals).sum(axis=1, dtype=acc)                        # (T, N, A)
+    sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)  # (T, N, A)
     return sums.transpose(1, 2, 0).astype(np.int64, order="C")
 
 
@@ -263,6 +265,30 @@ def _window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[i
     return x0, y0, x1, y1
 
 
+def _search_area(grid: GridMaps, poses: NDArray[np.float64], local: NDArray[np.float64], turn: float,
+                 shift: float, window: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """The part of window (x0, y0, x1, y1) the searches can read: the end points of every
+    pose turned by up to +-turn, shifted by up to shift [m], with a margin. It keeps the
+    window's alignment to POOL cells, so the pooled cells are the window's own.
+
+    A 180-degree scan covers about half the disc around the robot: half the pooling.
+    """
+    x0, y0, x1, y1 = window
+    cand = np.repeat(poses[:, None, :], 5, axis=1)
+    cand[..., 2] += np.linspace(-turn, turn, 5)
+    x, y = _world(cand, local)
+    # between the sampled turns the end points bulge out by at most r (1 - cos(turn / 4))
+    reach = float(np.hypot(local[:, 0], local[:, 1]).max())
+    margin = shift + reach * (1.0 - math.cos(turn / 4)) + SEARCH_MARGIN
+    lo = grid.world_to_cell(np.array([x.min(), y.min()]) - margin)
+    hi = grid.world_to_cell(np.array([x.max(), y.max()]) + margin) + 1
+    nx0 = x0 + POOL * max(0, (int(lo[0]) - x0) // POOL)
+    ny0 = y0 + POOL * max(0, (int(lo[1]) - y0) // POOL)
+    nx1 = min(x1, nx0 + POOL * math.ceil(max(int(hi[0]) - nx0, 0) / POOL))
+    ny1 = min(y1, ny0 + POOL * math.ceil(max(int(hi[1]) - ny0, 0) / POOL))
+    return nx0, ny0, nx1, ny1
+
+
 def refine_poses(slam: FastSlam, beams: Beams,
                  prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> NDArray[np.bool_]:
     """Moves each particle whose scan match is trusted to a sample around its matched
@@ -286,7 +312,7 @@ def refine_poses(slam: FastSlam, beams: Beams,
     dth = min(coarse / max(far, coarse), 0.1)                      # turn moving far points one pooled cell
     ka = math.ceil(cfg.match_theta_range / dth)
     reach = float(np.hypot(local[:, 0], local[:, 1]).max()) + cfg.match_xy_range + 2 * coarse
-    x0, y0, x1, y1 = _window(grid, slam.poses, reach)
+    x0, y0, x1, y1 = _search_area(grid, slam.poses, local, ka * dth, k0 * coarse, _window(grid, slam.poses, reach))
     if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
         return trusted
     raw = grid.logodds[:, y0:y1, x0:x1]                           # a view
@@ -307,11 +333,12 @@ def refine_poses(slam: FastSlam, beams: Beams,
         centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
     m = len(local)
     few = local[::COARSE_EVERY]  # the wide coarse search is the costliest: fewer end points
-    pose, _ = _pick(_grid_search(quarter, w_origin, coarse, start, turns, few, k0),
+    flags = FREE_COST == 0  # the pooled levels are 0/1 scores already
+    pose, _ = _pick(_grid_search(quarter, w_origin, coarse, start, turns, few, k0, flags),
                     start, turns, k0, coarse, centre, spread, len(few))
     # 2. the best coarse cell again on 2x2 cells, then on the map's own cells
     turns = np.array([-0.5, 0.0, 0.5]) * dth
-    pose, _ = _pick(_grid_search(half, w_origin, 2 * res, pose, turns, local, 2),
+    pose, _ = _pick(_grid_search(half, w_origin, 2 * res, pose, turns, local, 2, flags),
                     pose, turns, 2, 2 * res, centre, spread, m)
     turns = np.array([-0.25, 0.0, 0.25]) * dth
     scores = _grid_search(grid.logodds, grid.origin, res, pose, turns, local, 1)
@@ -402,8 +429,11 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
     h, w = grid.shape
     d = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
     ox, oy = (v.reshape(-1) for v in np.meshgrid(d, d))
-    shift = oy * w + ox                                                # flat offsets of the kernel
-    ox, oy = ox.astype(np.float32), oy.astype(np.float32)              # float32 kernel arithmetic
+    shift = (oy * w + ox).tolist()                                     # flat offsets of the kernel
+    lo = shift[0]
+    ox = ox.astype(np.float32)[:, None, None]                          # (O, 1, 1) float32 arithmetic
+    oy = oy.astype(np.float32)[:, None, None]
+    kernel = np.empty((len(shift), n, len(local)), dtype=grid.logodds.dtype)
     cells = grid.logodds.reshape(-1)
     # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
     c0, s0 = np.cos(centre[:, 2]), np.sin(centre[:, 2])
@@ -422,18 +452,20 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
         # cells of the grid were never seen: nothing occupied to find there)
         iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
         iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
-        base = (np.arange(n)[:, None] * h + iv) * w + iu               # (N, M)
-        occupied = cells.take(base[..., None] + shift) > 0            # (N, M, O)
-        ex = (u - iu - 0.5).astype(np.float32)[..., None] - ox         # end point - cell centre [cells]
-        ey = (v - iv - 0.5).astype(np.float32)[..., None] - oy
+        base = (np.arange(n)[:, None] * h + iv) * w + iu + lo          # (N, M), >= 0 (lo < 0)
+        for j, sh in enumerate(shift):                                 # kernel first: sums add whole slabs
+            np.take(cells[sh - lo:], base, out=kernel[j], mode="clip")  # cells base + sh
+        ex = (u - iu - 0.5).astype(np.float32) - ox                    # (O, N, M) end point - centre [cells]
+        ey = (v - iv - 0.5).astype(np.float32) - oy
         # The target is the Gaussian-weighted mean of the occupied centres nearby, not
         # the nearest one: a wall two cells thick has its surface between its rows.
-        near = np.exp(np.float32(-0.5 / ICP_SPREAD ** 2) * (ex * ex + ey * ey)) * occupied
-        total = near.sum(axis=2)
+        near = np.exp(np.float32(-0.5 / ICP_SPREAD ** 2) * (ex * ex + ey * ey))
+        near *= kernel > 0
+        total = near.sum(axis=0)
         found = total > 1e-6                                           # (N, M)
         total = np.maximum(total, 1e-6) / res
-        gx = (near * ex).sum(2) / total                                # target offsets [m]
-        gy = (near * ey).sum(2) / total
+        gx = (near * ex).sum(axis=0) / total                           # target offsets [m]
+        gy = (near * ey).sum(axis=0) / total
         # weights W = n n^T / sigma^2 on a surface, I / sigma^2 without a normal
         nx = c * normals[:, 0] - s * normals[:, 1]                     # normals in the map frame
         ny = s * normals[:, 0] + c * normals[:, 1]

@@ -431,8 +431,9 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
     ox, oy = (v.reshape(-1) for v in np.meshgrid(d, d))
     shift = (oy * w + ox).tolist()                                     # flat offsets of the kernel
     lo = shift[0]
-    ox = ox.astype(np.float32)[:, None, None]                          # (O, 1, 1) float32 arithmetic
-    oy = oy.astype(np.float32)[:, None, None]
+    kk = len(d)
+    dk = d.astype(np.float32)[:, None, None]                           # (K, 1, 1) float32 arithmetic
+    gain = np.float32(-0.5 / ICP_SPREAD ** 2)
     kernel = np.empty((len(shift), n, len(local)), dtype=grid.logodds.dtype)
     cells = grid.logodds.reshape(-1)
     # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
@@ -455,17 +456,19 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
         base = (np.arange(n)[:, None] * h + iv) * w + iu + lo          # (N, M), >= 0 (lo < 0)
         for j, sh in enumerate(shift):                                 # kernel first: sums add whole slabs
             np.take(cells[sh - lo:], base, out=kernel[j], mode="clip")  # cells base + sh
-        ex = (u - iu - 0.5).astype(np.float32) - ox                    # (O, N, M) end point - centre [cells]
-        ey = (v - iv - 0.5).astype(np.float32) - oy
+        ex = (u - iu - 0.5).astype(np.float32) - dk                    # (K, N, M) end point - centre [cells]
+        ey = (v - iv - 0.5).astype(np.float32) - dk
         # The target is the Gaussian-weighted mean of the occupied centres nearby, not
         # the nearest one: a wall two cells thick has its surface between its rows.
-        near = np.exp(np.float32(-0.5 / ICP_SPREAD ** 2) * (ex * ex + ey * ey))
-        near *= kernel > 0
-        total = near.sum(axis=0)
+        # The weight exp(-(ex^2 + ey^2) / 2s^2) is one factor per axis.
+        near = (kernel > 0).view(np.int8).reshape(kk, kk, n, -1) * np.exp(gain * ey * ey)[:, None]
+        near *= np.exp(gain * ex * ex)                                  # (K rows, K columns, N, M)
+        by_column, by_row = near.sum(axis=0), near.sum(axis=1)         # (K, N, M) each
+        total = by_column.sum(axis=0)
         found = total > 1e-6                                           # (N, M)
         total = np.maximum(total, 1e-6) / res
-        gx = (near * ex).sum(axis=0) / total                           # target offsets [m]
-        gy = (near * ey).sum(axis=0) / total
+        gx = (by_column * ex).sum(axis=0) / total                      # target offsets [m]
+        gy = (by_row * ey).sum(axis=0) / total
         # weights W = n n^T / sigma^2 on a surface, I / sigma^2 without a normal
         nx = c * normals[:, 0] - s * normals[:, 1]                     # normals in the map frame
         ny = s * normals[:, 0] + c * normals[:, 1]

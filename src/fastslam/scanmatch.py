@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .geometry import wrap_angle
-from .grid import GridMaps
+from .grid import GridMaps, scratch
 from .scan import Beams
 
 if TYPE_CHECKING:
@@ -132,7 +132,7 @@ def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: flo
     at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)       # (M, N, A)
     at += lo                                                                # >= 0: cells are clamped k from the edge
     f = level.reshape(-1)
-    vals = np.empty((len(shifts),) + at.shape, dtype=level.dtype)           # (T, M, N, A)
+    vals = scratch("grid_search", (len(shifts),) + at.shape, level.dtype)  # (T, M, N, A), reused
     for i, s in enumerate(shifts):
         np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
     # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.

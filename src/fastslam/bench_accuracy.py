@@ -119,7 +119,7 @@ def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
 # range, the assignment's clearing of no-returns (the simulated LDS-01 reports inf), and
 # gmapping-like update gating with the narrower match window its smaller steps need.
 LDS01 = {"max_range": 3.5, "no_return_range": 3.5, "linear_update": 0.2, "angular_update": 0.2,
-         "match_xy_range": 0.2, "match_theta_range": 0.2}
+         "match_xy_range": 0.2, "match_theta_range": 0.2, "free_beam_step": 1}
 
 
 def office_case(name: str, seed: int, world: str = "office") -> dict:

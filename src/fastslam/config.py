@@ -81,6 +81,9 @@ class SlamConfig:
                                "odometry prior of the match: window: centred on the particle's sample, "
                                "std-dev half the search window; motion: centred on the noise-free "
                                "prediction, std-dev from srr/srt/str/stt for this step")
+    match_spread: str = _choice("fixed", ("fixed", "match"),
+                                "spread of the sample around a match: fixed: match_sigma_*; match: the "
+                                "ICP's covariance (inverse Hessian with the prior; match_refine: icp only)")
     match_refine: str = _choice("hill", ("hill", "icp"),
                                 "last stage of the match: hill: climb the interpolated evidence; "
                                 "icp: Gauss-Newton on end point to nearest occupied cell, with the prior")
@@ -95,6 +98,8 @@ class SlamConfig:
             raise ConfigError(f"fov_min={self.fov_min} must be less than fov_max={self.fov_max}")
         if self.l_min >= self.l_max:
             raise ConfigError(f"l_min={self.l_min} must be less than l_max={self.l_max}")
+        if self.match_spread == "match" and self.match_refine != "icp":
+            raise ConfigError("match_spread=match needs match_refine=icp (the hill climb has no covariance)")
         for name in ("map_width", "map_height"):
             if getattr(self, name) < 4 * self.map_resolution:
                 raise ConfigError(f"{name}={getattr(self, name)} must be at least 4 cells of map_resolution")

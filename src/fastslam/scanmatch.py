@@ -343,11 +343,14 @@ def refine_poses(slam: FastSlam, beams: Beams,
     turns = np.array([-0.25, 0.0, 0.25]) * dth
     scores = _grid_search(grid.logodds, grid.origin, res, pose, turns, local, 1)
     pose, _ = _pick(scores, pose, turns, 1, res, centre, spread, m)
+    cov = None
     if cfg.match_refine == "icp":
-        pose = _icp(grid, pose, local, _normals(beams, sel), centre, spread)
+        pose, info = _icp(grid, pose, local, _normals(beams, sel), centre, spread)
+        if cfg.match_spread == "match":
+            cov = np.linalg.inv(info)
     else:
         pose = _hill_climb(grid, pose, local, dth)
-    return _accept(slam, pose, local, half, w_origin, known)
+    return _accept(slam, pose, local, half, w_origin, known, cov)
 
 
 def _hill_climb(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64],
@@ -371,8 +374,10 @@ def _hill_climb(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.flo
 
 
 def _accept(slam: FastSlam, pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],
-            w_origin: NDArray[np.float64], known: NDArray[np.intp]) -> NDArray[np.bool_]:
-    """Moves the particles with a trusted match to a sample around it; returns which."""
+            w_origin: NDArray[np.float64], known: NDArray[np.intp],
+            cov: NDArray[np.float64] | None = None) -> NDArray[np.bool_]:
+    """Moves the particles with a trusted match to a sample around it, with covariance
+    cov (N, 3, 3) or the fixed match_sigma_*; returns which."""
     cfg = slam.cfg
     n = len(pose)
     res = slam.grid.resolution
@@ -386,8 +391,11 @@ def _accept(slam: FastSlam, pose: NDArray[np.float64], local: NDArray[np.float64
         return trusted
     # A fixed spread: one taken from the posterior of the cell-level search (often a
     # few cm) blurred the maps and doubled the Intel ATE.
-    sigma = np.array([cfg.match_sigma_xy, cfg.match_sigma_xy, cfg.match_sigma_theta])
-    sample = pose + slam.rng.normal(0.0, 1.0, (n, 3)) * sigma
+    z = slam.rng.normal(0.0, 1.0, (n, 3))
+    if cov is None:
+        sample = pose + z * np.array([cfg.match_sigma_xy, cfg.match_sigma_xy, cfg.match_sigma_theta])
+    else:  # the match's own uncertainty: wide only along what the scan cannot tell
+        sample = pose + (np.linalg.cholesky(cov) @ z[..., None])[..., 0]
     sample[:, 2] = wrap_angle(sample[:, 2])
     slam.poses[trusted] = sample[trusted]
     return trusted
@@ -412,7 +420,8 @@ def _normals(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
 
 
 def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
-         centre: NDArray[np.float64], spread: NDArray[np.float64]) -> NDArray[np.float64]:
+         centre: NDArray[np.float64], spread: NDArray[np.float64]
+         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """3. Gauss-Newton steps on the distances from the end points to the centres of their
     nearest occupied cells (a weighted mean of them), measured along the surface normal where the scan gives one
     (normals (M, 2), robot frame; zero: the whole distance), plus the Gaussian prior
@@ -492,7 +501,7 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
                          (rx * fy - ry * fx).sum(1) + p_tt * off[:, 2]], axis=1)
         pose -= np.linalg.solve(hess, grad[..., None])[..., 0]
     pose[:, 2] = wrap_angle(pose[:, 2])
-    return pose
+    return pose, hess
 
 
 def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, *,

@@ -133,7 +133,7 @@ def test_icp_leaves_the_corridor_direction_to_the_prior():
     start = np.array([[0.06, 0.04, 0.02]])             # the particle's sample, further off
     spread = np.array([0.05, 0.05, 0.05])
     normals = np.tile([0.0, 1.0], (len(local), 1))     # walls along x
-    pose = scanmatch._icp(grid, start, local, normals, centre, spread)
+    pose, _ = scanmatch._icp(grid, start, local, normals, centre, spread)
     assert pose[0, 0] == pytest.approx(0.03, abs=0.003)
     assert abs(pose[0, 1]) < 0.003
     assert abs(pose[0, 2]) < 0.002
@@ -147,7 +147,7 @@ def test_icp_refines_a_sub_cell_offset_in_the_room():
     local = scanmatch._end_points(beams, sel)
     start = truth + np.array([[0.04, -0.03, 0.02]])
     spread = np.array([0.1, 0.1, 0.1])                 # a weak prior, centred on the start
-    pose = scanmatch._icp(slam.grid, start, local, scanmatch._normals(beams, sel), start, spread)
+    pose, _ = scanmatch._icp(slam.grid, start, local, scanmatch._normals(beams, sel), start, spread)
     assert np.hypot(*(pose[0, :2] - truth[:2])) < 0.015
     assert abs(pose[0, 2] - truth[2]) < np.radians(0.5)
 
@@ -192,3 +192,25 @@ def test_normals_are_perpendicular_to_the_wall_and_missing_at_gaps():
     normals = scanmatch._normals(beams, np.arange(6))
     np.testing.assert_array_equal(normals[[0, 4, 5]], np.zeros((3, 2)))   # an end of the scan, a gap
     np.testing.assert_allclose(np.abs(normals[1:4]), [[1.0, 0.0]] * 3, atol=1e-12)
+
+
+def test_icp_covariance_is_wide_only_along_the_corridor():
+    grid = _corridor_grid()
+    local = _wall_points(np.linspace(-1.0, 1.0, 21))
+    normals = np.tile([0.0, 1.0], (len(local), 1))
+    centre = np.zeros((1, 3))
+    spread = np.array([0.05, 0.05, 0.05])
+    _, info = scanmatch._icp(grid, centre.copy(), local, normals, centre, spread)
+    std = np.sqrt(np.diag(np.linalg.inv(info[0])))
+    # along: the prior alone; across: 42 end points of sigma 0.05 m and the prior;
+    # heading: their lever arms along the walls (the walls' y cancel between the two)
+    assert std[0] == pytest.approx(0.05, rel=1e-6)
+    assert std[1] == pytest.approx(1 / np.sqrt(42 / 0.05 ** 2 + 1 / 0.05 ** 2), rel=0.01)
+    assert std[2] == pytest.approx(1 / np.sqrt((local[:, 0] ** 2).sum() / 0.05 ** 2 + 1 / 0.05 ** 2), rel=0.01)
+
+
+def test_match_spread_needs_icp():
+    from fastslam.config import ConfigError
+
+    with pytest.raises(ConfigError, match="match_spread"):
+        SlamConfig(match_spread="match", match_refine="hill")

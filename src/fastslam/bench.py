@@ -143,8 +143,8 @@ def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> li
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("suites", nargs="*", default=["speed", "intel", "office", "longrun"],
-                        help="speed, intel, office, longrun (default: all)")
+    parser.add_argument("suites", nargs="*", default=["speed", "intel", "office", "matcher", "longrun"],
+                        help="speed, intel, office, matcher, longrun (default: all)")
     parser.add_argument("--case", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.case:
@@ -163,6 +163,11 @@ def main(argv: list[str] | None = None) -> int:
             from .bench_accuracy import office_suite
 
             office_suite()
+        elif suite == "matcher":
+            from .bench_matcher import main as matcher_main
+
+            for data in ("intel", "office"):
+                matcher_main([data])
         elif suite == "longrun":
             longrun_suite()
         else:

@@ -33,7 +33,10 @@ from .slam import FastSlam
 from .trajectory_metrics import ate, rpe
 
 ROOT = Path(__file__).resolve().parents[2]
-INTEL_LOG = Path("/work/shared/data/intel-corrected.log.gz")
+# shared/ lies beside the repository (CI clones main next to it), /work/shared here
+INTEL_LOG = next((p for p in (ROOT.parent / "shared" / "data" / "intel-corrected.log.gz",
+                              Path("/work/shared/data/intel-corrected.log.gz")) if p.is_file()),
+                 ROOT.parent / "shared" / "data" / "intel-corrected.log.gz")
 CONFIGS = {"improved": ROOT / "config" / "real.yaml", "assignment": ROOT / "config" / "slam.yaml"}
 PARTICLES = {"improved": 30, "assignment": None}  # None: as the file says
 

@@ -87,6 +87,13 @@ def dead_reckoning(seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG)
             "peak_mb": nan}
 
 
+def _case_in_own_process(flag: str, args: list) -> dict:
+    """One case run by this module in a fresh interpreter, so its peak memory is its own."""
+    out = subprocess.run([sys.executable, "-m", "fastslam.bench_accuracy", flag, json.dumps(args)],
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
 def _row(r: dict) -> str:
     return (f"{r['config']:<15} {r['seed']:>4} {r['particles']:>3} {r['ate_m']:>7.3f} {r['rpe_m']:>7.3f} "
             f"{r['rpe_deg']:>7.2f} {r['wall_s']:>7.1f} {r['ms_per_scan']:>7.1f} {r['peak_mb']:>7.0f}")
@@ -104,10 +111,7 @@ def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
     rows = []
     for name in configs:
         for seed in seeds:
-            out = subprocess.run([sys.executable, "-m", "fastslam.bench_accuracy", "--case",
-                                  json.dumps([name, seed, level])],
-                                 capture_output=True, text=True, check=True)
-            rows.append(json.loads(out.stdout))
+            rows.append(_case_in_own_process("--case", [name, seed, level]))
             print(_row(rows[-1]), flush=True)
     for seed in seeds:
         rows.append(dead_reckoning(seed, level=level))
@@ -148,9 +152,7 @@ def office_suite(seeds: tuple[int, ...] = (0, 1, 2),
     rows = []
     for name in configs:
         for seed in seeds:
-            out = subprocess.run([sys.executable, "-m", "fastslam.bench_accuracy", "--office-case",
-                                  json.dumps([name, seed])], capture_output=True, text=True, check=True)
-            r = json.loads(out.stdout)
+            r = _case_in_own_process("--office-case", [name, seed])
             rows.append(r)
             print(f"{name:<15} {seed:>4} {r['particles']:>3} {r['trajectory_rms_m']:>7.3f} "
                   f"{r['trajectory_max_m']:>7.3f} {r['dead_reckoning_rms_m']:>7.3f} {r['updates']:>7} "

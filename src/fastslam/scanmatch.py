@@ -10,7 +10,9 @@ Every particle matches the scan against its own map, all particles at once:
 3. hill climbing with halving steps (gmapping's optimiser) on the bilinearly
    interpolated log-odds of occupied cells, for a pose finer than a cell; or
    (`match_refine: icp`) a few Gauss-Newton steps pulling each end point towards the
-   centre of the nearest occupied cell, weighed against the odometry prior.
+   weighted mean of the occupied cell centres near it, along the scan's surface
+   normal, weighed against the odometry prior; its covariance can set the spread of
+   the sample (`match_spread: match`).
 
 The odometry prior (`match_prior`) keeps a particle where odometry put it along
 directions the scan cannot tell (a corridor): either half the search window around
@@ -56,7 +58,7 @@ FREE_COST = 0          # an end point in known free space costs this many occupi
 PRIOR_FLOOR = np.array([0.025, 0.025, 0.01])    # along, across [m], heading [rad]
 SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further
 ICP_ITERATIONS = 3
-ICP_RADIUS = 2         # cells searched around each end point for the nearest occupied one
+ICP_RADIUS = 2         # cells searched around each end point for occupied ones
 ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
 ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
 NORMAL_GAP = 0.3       # [m] neighbouring returns farther apart give no surface normal
@@ -232,8 +234,6 @@ def _pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[n
     as the two halves of a doubled row: cheaper than maxima of strided int8 views.
     A few maps at a time, in reused work arrays: the temporaries stay in cache.
     """
-    from .grid import scratch
-
     n, h, w = level.shape
     maps = 8  # at a time
     half = np.empty((n, h // 2, w // 2), dtype=np.bool_)
@@ -389,8 +389,9 @@ def _accept(slam: FastSlam, pose: NDArray[np.float64], local: NDArray[np.float64
     trusted = (on_map >= cfg.match_min_score) & (known >= cfg.match_min_known)
     if not trusted.any():
         return trusted
-    # A fixed spread: one taken from the posterior of the cell-level search (often a
-    # few cm) blurred the maps and doubled the Intel ATE.
+    # The fixed spread is the default: one taken from the posterior of the cell-level
+    # search (often a few cm) blurred the maps and doubled the Intel ATE. The ICP's
+    # covariance is narrow across surfaces and wide only along them.
     z = slam.rng.normal(0.0, 1.0, (n, 3))
     if cov is None:
         sample = pose + z * np.array([cfg.match_sigma_xy, cfg.match_sigma_xy, cfg.match_sigma_theta])

@@ -49,10 +49,8 @@ if TYPE_CHECKING:
     from .slam import FastSlam
 
 POOL = 4               # coarse level: cells per side of a pooled cell
-COARSE_EVERY = 1      # the coarse search uses every k-th matched end point
 FINE_ITERATIONS = 6    # hill-climbing steps (a step halves when no neighbour improves)
 MIN_BEAMS = 10         # fewer returns than this: nothing to match
-FREE_COST = 0          # an end point in known free space costs this many occupied hits
 # The motion prior never gets narrower than this: odometry of a standing robot still
 # errs by about half a cell, and the heading by a few tenths of a degree.
 PRIOR_FLOOR = np.array([0.025, 0.025, 0.01])    # along, across [m], heading [rad]
@@ -96,15 +94,12 @@ def _world(poses: NDArray[np.float64], local: NDArray[np.float64]) -> tuple[NDAr
 
 
 def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
-    """+1 for an occupied cell, 0 unknown, -FREE_COST free.
+    """1 for an occupied cell, else 0.
 
     Occupied or not, never how strongly: cells the robot saw many times (behind it)
     would otherwise pull the match backwards along a corridor.
     """
-    occ = (logodds > 0).view(np.int8)
-    if FREE_COST == 0:
-        return occ
-    return occ - (logodds < 0).view(np.int8) * np.int8(FREE_COST)
+    return (logodds > 0).view(np.int8)
 
 
 def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
@@ -138,15 +133,15 @@ def _grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: flo
     for i, s in enumerate(shifts):
         np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
     # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
-    acc = np.int8 if FREE_COST == 0 and len(local) < 128 else np.int16
+    acc = np.int8 if len(local) < 128 else np.int16
     sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)  # (T, N, A)
     return sums.transpose(1, 2, 0).astype(np.int64, order="C")
 
 
 def _pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[np.float64],
           k: int, cell: float, start: NDArray[np.float64], prior: NDArray[np.float64], beams: int
-          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Best candidate of each particle as a pose (N, 3), and the log-posteriors (N, A, T).
+          ) -> NDArray[np.float64]:
+    """Best candidate of each particle as a pose (N, 3).
 
     Scores become log-likelihoods as in _nats; the odometry prediction `start` (N, 3)
     adds a Gaussian prior with std-devs prior (3,) along and across its heading and of
@@ -172,7 +167,7 @@ def _pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[
     out[:, 0] += d[ix] * cell
     out[:, 1] += d[iy] * cell
     out[:, 2] += turns[ia]
-    return out, s
+    return out
 
 
 def _nats(scores: NDArray[np.int64], beams: int) -> NDArray[np.float64]:
@@ -216,19 +211,9 @@ def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cel
     return val.sum(axis=2)
 
 
-def _pool(level: NDArray[np.int8]) -> NDArray[np.int8]:
-    """(N, H, W) -> (N, H/2, W/2) maximum over 2x2 cells (H, W even).
-
-    Row pairs first, then column pairs of the (contiguous) result: element-wise
-    maxima of strided views, much faster than a reduction over small inner axes.
-    """
-    rows = np.maximum(level[:, 0::2, :], level[:, 1::2, :])
-    return np.maximum(rows[:, :, 0::2], rows[:, :, 1::2])
-
-
 def _pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
     """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
-    2x2 and 4x4 block is occupied (H, W multiples of 4); > 0 exactly where _pool's are.
+    2x2 and 4x4 block is occupied (H, W multiples of 4).
 
     Column pairs of a contiguous flag array are read as one uint16 each, row pairs
     as the two halves of a doubled row: cheaper than maxima of strided int8 views.
@@ -316,11 +301,7 @@ def refine_poses(slam: FastSlam, beams: Beams,
     if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
         return trusted
     raw = grid.logodds[:, y0:y1, x0:x1]                           # a view
-    if FREE_COST == 0:  # only occupied or not counts on the pooled levels: pool 0/1 flags
-        half, quarter = _pool_occupied(raw)                        # 2x2, 4x4 cells: occupied if any is
-    else:
-        half = _pool(raw)
-        quarter = _pool(half)
+    half, quarter = _pool_occupied(raw)                            # 2x2, 4x4 cells: occupied if any is
     known = np.count_nonzero(quarter > 0, axis=(1, 2))             # (N,) occupied 4x4 blocks in reach
     w_origin = grid.origin + np.array([x0, y0]) * res
     # 1. coarse: wide window on 4x4 cells
@@ -332,17 +313,15 @@ def refine_poses(slam: FastSlam, beams: Beams,
     else:
         centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
     m = len(local)
-    few = local[::COARSE_EVERY]  # the wide coarse search is the costliest: fewer end points
-    flags = FREE_COST == 0  # the pooled levels are 0/1 scores already
-    pose, _ = _pick(_grid_search(quarter, w_origin, coarse, start, turns, few, k0, flags),
-                    start, turns, k0, coarse, centre, spread, len(few))
+    pose = _pick(_grid_search(quarter, w_origin, coarse, start, turns, local, k0, flags=True),
+                 start, turns, k0, coarse, centre, spread, m)
     # 2. the best coarse cell again on 2x2 cells, then on the map's own cells
     turns = np.array([-0.5, 0.0, 0.5]) * dth
-    pose, _ = _pick(_grid_search(half, w_origin, 2 * res, pose, turns, local, 2, flags),
-                    pose, turns, 2, 2 * res, centre, spread, m)
+    pose = _pick(_grid_search(half, w_origin, 2 * res, pose, turns, local, 2, flags=True),
+                 pose, turns, 2, 2 * res, centre, spread, m)
     turns = np.array([-0.25, 0.0, 0.25]) * dth
     scores = _grid_search(grid.logodds, grid.origin, res, pose, turns, local, 1)
-    pose, _ = _pick(scores, pose, turns, 1, res, centre, spread, m)
+    pose = _pick(scores, pose, turns, 1, res, centre, spread, m)
     cov = None
     if cfg.match_refine == "icp":
         pose, info = _icp(grid, pose, local, _normals(beams, sel), centre, spread)

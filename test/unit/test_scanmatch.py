@@ -90,11 +90,12 @@ def test_endpoint_distances_cap_far_walls():
     np.testing.assert_array_equal(d, [[0.15], [0.15]])
 
 
-def test_pool_is_the_maximum_over_two_by_two_cells():
+def test_pooled_flags_mark_blocks_with_an_occupied_cell():
     rng = np.random.default_rng(0)
-    a = rng.integers(-100, 100, (2, 6, 8), dtype=np.int8)
-    expect = a.reshape(2, 3, 2, 4, 2).max(axis=(2, 4))
-    np.testing.assert_array_equal(scanmatch._pool(a), expect)
+    a = rng.integers(-100, 30, (2, 8, 12), dtype=np.int8)
+    half, quarter = scanmatch._pool_occupied(a)
+    np.testing.assert_array_equal(half, a.reshape(2, 4, 2, 6, 2).max(axis=(2, 4)) > 0)
+    np.testing.assert_array_equal(quarter, a.reshape(2, 2, 4, 3, 4).max(axis=(2, 4)) > 0)
 
 
 def test_returns_subset_spreads_the_returns_evenly():
@@ -158,9 +159,9 @@ def test_motion_prior_is_tighter_along_the_heading():
     poses = np.array([[0.0, 0.0, np.pi / 2]])           # heading +y
     scores = np.zeros((1, 1, 9), dtype=np.int64)
     centre = np.array([[0.05, 0.05, np.pi / 2]])        # 5 cm off in x (across) and y (along)
-    out, _ = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.02, 0.2, 0.1]), 60)
+    out = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.02, 0.2, 0.1]), 60)
     np.testing.assert_allclose(out[0], [0.05, 0.05, np.pi / 2])
-    out, _ = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.2, 0.02, 0.1]), 60)
+    out = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.2, 0.02, 0.1]), 60)
     np.testing.assert_allclose(out[0], [0.05, 0.05, np.pi / 2])
 
 

@@ -194,12 +194,7 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
                      first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer], NDArray[np.integer]]:
     """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
-    table = _prefix_masks(rays.flat.shape[2])  # see _free_of
-    free_mask = np.take(table, free_until, axis=0, mode="clip")
-    free_mask &= ~np.take(table, first_step, axis=0, mode="clip")
-    if not rays.inside:
-        free_mask &= rays.flat >= 0
-    free = rays.flat[free_mask]
+    free = _free_of(rays.flat, free_until, first_step, valid=None if rays.inside else rays.flat >= 0)
     has_hit = hit_step >= 0
     hit = np.take_along_axis(rays.flat, np.where(has_hit, hit_step, 0)[..., None], axis=2)[..., 0]
     return free, hit[has_hit & (hit >= 0)]
@@ -304,15 +299,17 @@ def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[n
     return np.concatenate(free, out=out), hit_cells
 
 
-def _free_of(flat: NDArray[np.integer], until: NDArray[np.int64], first_step: NDArray[np.int64]
-             ) -> NDArray[np.integer]:
-    """The cells of steps first_step <= k < until of flat (n, M, K)."""
+def _free_of(flat: NDArray[np.integer], until: NDArray[np.int64], first_step: NDArray[np.int64],
+             valid: NDArray[np.bool_] | None = None) -> NDArray[np.integer]:
+    """The cells of steps first_step <= k < until of flat (n, M, K), where valid."""
     # Row u of the table is the mask k < u: one row copied per beam, cheaper than a
     # comparison broadcast over every step ("clip" clips u to 0 .. K).
     table = _prefix_masks(flat.shape[2])
     mask = np.take(table, until, axis=0, out=scratch("raycast_mask", flat.shape, np.bool_), mode="clip")
     if first_step.any():
         mask &= ~np.take(table, first_step, axis=0, mode="clip")
+    if valid is not None:
+        mask &= valid
     return flat[mask]  # boolean indexing: much faster than np.compress with out
 
 

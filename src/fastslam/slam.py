@@ -127,30 +127,32 @@ class FastSlam:
         """Gating: process after enough travel, turn or time (all zero: every scan)."""
         cfg = self.cfg
         assert self._odom is not None
-        moved = float(np.hypot(*(odom[:2] - self._odom[:2])))
-        turned = abs(float(wrap_angle(odom[2] - self._odom[2])))
         if cfg.linear_update == 0 and cfg.angular_update == 0:
             return True
+        moved = float(np.hypot(*(odom[:2] - self._odom[:2])))
+        turned = abs(float(wrap_angle(odom[2] - self._odom[2])))
         waited = cfg.temporal_update >= 0 and stamp - self._stamp >= cfg.temporal_update
         return moved >= cfg.linear_update or turned >= cfg.angular_update or waited
 
     def _move(self, odom: NDArray) -> None:
         cfg = self.cfg
         assert self._odom is not None
-        alphas = (cfg.srr, cfg.srt, cfg.str, cfg.stt)
         if cfg.proposal == "scan_match" and cfg.match_prior == "motion":
             # The matcher's prior: the noise-free prediction and its spread (no random draw).
             self._predicted = self.poses.copy()
-            if cfg.motion_model == "assignment":
-                sample_motion_assignment(self._predicted, self._odom, odom, np.zeros(3), self.rng)
-                self._motion_std = np.asarray(cfg.motion_sigmas, dtype=np.float64)
-            else:
-                sample_motion_odometry(self._predicted, self._odom, odom, alphas, False, self.rng)
-                self._motion_std = odometry_std(self._odom, odom, alphas)
+            self._apply_motion(self._predicted, odom, noise=False)
+            self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
+                                else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
+        self._apply_motion(self.poses, odom, noise=bool(cfg.toggle_noise))
+
+    def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray, noise: bool) -> None:
+        """Moves poses (N, 3) in place by the configured motion model, sampled or not."""
+        cfg = self.cfg
         if cfg.motion_model == "assignment":
-            sample_motion_assignment(self.poses, self._odom, odom, cfg.motion_sigmas, self.rng)
+            sigmas = cfg.motion_sigmas if noise else np.zeros(3)  # zeros: no random draw
+            sample_motion_assignment(poses, self._odom, odom, sigmas, self.rng)
         else:
-            sample_motion_odometry(self.poses, self._odom, odom, alphas, bool(cfg.toggle_noise), self.rng)
+            sample_motion_odometry(poses, self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt), noise, self.rng)
 
     def _cover_beams(self) -> tuple[bool, bool]:
         """Grows the maps so every particle's beams stay inside; or reports clipping."""

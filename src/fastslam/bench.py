@@ -1,11 +1,12 @@
 """`make bench`: speed, memory and accuracy figures (recorded in docs/benchmarks.md).
 
-    python -m fastslam.bench [speed] [intel] [office] [longrun]    (default: all)
+    python -m fastslam.bench [speed] [intel] [office] [matcher] [longrun]    (default: all)
 
 speed: for N in {20, 50, 100} and beams in {60, 360}, on a 10 m and a 40 m square map
 at 0.05 m, the median milliseconds per full filter step and the peak memory of a fresh
 process (each case in its own interpreter, so peak RSS is that case's alone).
 intel, office: accuracy of the improved mode vs the assignment (fastslam.bench_accuracy).
+matcher: the scan matcher alone against reference poses (fastslam.bench_matcher).
 longrun: a 30-minute simulated run (office loop, faster than real time) with memory
 and time per update sampled every 5 minutes of simulated time.
 """
@@ -64,8 +65,8 @@ def speed_case(particles: int, beams: int, size: float, steps: int = 25) -> dict
 
 
 def baseline_rss_mb() -> float:
-    """Peak RSS of an interpreter that loaded the core and ran one step of a
-    one-particle filter on a 1 m map: Python, numpy and the code, but no maps."""
+    """Peak RSS of an interpreter that loaded the core and ran the speed case's steps
+    with one particle on a 1 m map: Python, numpy and the code, but no maps."""
     out = subprocess.run([sys.executable, "-m", "fastslam.bench", "--case", json.dumps([1, 60, 1.0])],
                          capture_output=True, text=True, check=True)
     return float(json.loads(out.stdout)["peak_rss_mb"])
@@ -101,7 +102,6 @@ def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> li
     """Drives the office loop again and again for `minutes` of simulated time."""
     from pathlib import Path
 
-    from .scan import Scan as ScanT
     from .sim.route import load_route
     from .sim.sim import SimConfig, Simulation
     from .sim.world import load_world
@@ -120,7 +120,7 @@ def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> li
     while sim.time < minutes * 60:
         tick = sim.step()
         if tick.scan is not None:
-            scan = ScanT.from_laser(tick.scan.astype(np.float32), float(angles[0]), float(angles[1] - angles[0]),
+            scan = Scan.from_laser(tick.scan.astype(np.float32), float(angles[0]), float(angles[1] - angles[0]),
                                     sim_cfg.range_min, sim_cfg.range_max, mount=(sim_cfg.laser_x, 0.0, 0.0),
                                     stamp=tick.t)
             info = slam.step(sim.odom.pose.copy(), scan)

@@ -44,15 +44,15 @@ def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(true pose, scan) of the simulator's office route, perfect odometry."""
     from .bench_accuracy import LDS01
-    from .metrics import interpolate_poses
     from .simrun import run
+    from .trajectory_metrics import match_by_time
 
     cfg = SlamConfig.from_dict({"proposal": "odometry", "toggle_noise": 0, "particles": 1, **LDS01})
     sim = run("office", cfg, seed=0, sim={"odom_noise": False}, record=True)
     for rec in sim.scans[:limit]:
-        pose = interpolate_poses(sim.truth[:, 0], sim.truth[:, 1:], np.array([rec.t]))[0]
+        pose = match_by_time(sim.truth[:, 0], sim.truth[:, 1:], [rec.t], np.zeros((1, 3)), interpolate=True)[1][0]
         yield pose, Scan.from_laser(rec.ranges, rec.angle_min, rec.angle_increment, rec.range_min,
-                                    rec.range_max, mount=(-0.032, 0.0, 0.0), stamp=rec.t)
+                                    rec.range_max, mount=sim.mount, stamp=rec.t)
 
 
 def match_errors(cfg: SlamConfig, scans: Iterator[tuple[np.ndarray, Scan]], seed: int = 0) -> np.ndarray:

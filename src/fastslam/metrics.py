@@ -4,30 +4,17 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .geometry import wrap_angle
+from .trajectory_metrics import match_by_time
 
 OCCUPIED = 65  # map_saver's occupied threshold, in OccupancyGrid percent
 
 
-def interpolate_poses(times: NDArray[np.float64], poses: NDArray[np.float64],
-                      at: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(len(at), 3) poses linearly interpolated at the given times (heading unwrapped first)."""
-    order = np.argsort(times)
-    times, poses = times[order], poses[order]
-    out = np.empty((len(at), 3))
-    out[:, 0] = np.interp(at, times, poses[:, 0])
-    out[:, 1] = np.interp(at, times, poses[:, 1])
-    out[:, 2] = wrap_angle(np.interp(at, times, np.unwrap(poses[:, 2])))
-    return out
-
-
 def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64]) -> NDArray[np.float64]:
     """(T,) position error of each estimated row (t, x, y, theta) against truth rows
-    (t, x, y, theta) interpolated at that time, both in the same frame (no alignment)."""
-    inside = (estimate[:, 0] >= truth[:, 0].min()) & (estimate[:, 0] <= truth[:, 0].max())
-    est = estimate[inside]
-    ref = interpolate_poses(truth[:, 0], truth[:, 1:], est[:, 0])
-    return np.hypot(est[:, 1] - ref[:, 0], est[:, 2] - ref[:, 1])
+    (t, x, y, theta, ascending t) interpolated at that time, both in the same frame (no
+    alignment); estimated rows outside the truth's time span are left out."""
+    _, ref, est = match_by_time(truth[:, 0], truth[:, 1:], estimate[:, 0], estimate[:, 1:], interpolate=True)
+    return np.hypot(est[:, 0] - ref[:, 0], est[:, 1] - ref[:, 1])
 
 
 def in_frame_of(pose: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -47,15 +47,20 @@ def _rot_trans_rot(prev_odom: NDArray, odom: NDArray) -> tuple[float, float, flo
     return rot1, trans, rot2
 
 
+def _step_sigmas(rot1: float, trans: float, rot2: float, alphas: tuple[float, float, float, float]
+                 ) -> tuple[float, float, float]:
+    """Std-devs of rot1, trans, rot2 (gmapping's srr, srt, str, stt)."""
+    srr, srt, s_rt, stt = alphas
+    return (stt * abs(rot1) + s_rt * abs(trans), srr * abs(trans) + srt * (abs(rot1) + abs(rot2)),
+            stt * abs(rot2) + s_rt * abs(trans))
+
+
 def odometry_std(prev_odom: NDArray, odom: NDArray, alphas: tuple[float, float, float, float]
                  ) -> NDArray[np.float64]:
     """(3,) std-devs of sample_motion_odometry's end pose for this step: along the
     direction of travel, across it [m], and of the heading [rad] (first order)."""
-    srr, srt, s_rt, stt = alphas
     rot1, trans, rot2 = _rot_trans_rot(prev_odom, odom)
-    s_rot1 = stt * abs(rot1) + s_rt * abs(trans)
-    s_trans = srr * abs(trans) + srt * (abs(rot1) + abs(rot2))
-    s_rot2 = stt * abs(rot2) + s_rt * abs(trans)
+    s_rot1, s_trans, s_rot2 = _step_sigmas(rot1, trans, rot2, alphas)
     return np.array([s_trans, abs(trans) * s_rot1, float(np.hypot(s_rot1, s_rot2))])
 
 
@@ -67,16 +72,16 @@ def sample_motion_odometry(poses: NDArray[np.float64], prev_odom: NDArray, odom:
     alphas = (srr, srt, str, stt) as in gmapping: translation noise from translation and
     from rotation, rotation noise from translation and from rotation.
     """
-    srr, srt, s_rt, stt = alphas
     rot1, trans, rot2 = _rot_trans_rot(prev_odom, odom)
     n = len(poses)
     r1 = np.full(n, rot1)
     tr = np.full(n, trans)
     r2 = np.full(n, rot2)
     if noise:
-        r1 += rng.normal(0, 1, n) * (stt * abs(rot1) + s_rt * abs(trans))
-        tr += rng.normal(0, 1, n) * (srr * abs(trans) + srt * (abs(rot1) + abs(rot2)))
-        r2 += rng.normal(0, 1, n) * (stt * abs(rot2) + s_rt * abs(trans))
+        s_rot1, s_trans, s_rot2 = _step_sigmas(rot1, trans, rot2, alphas)
+        r1 += rng.normal(0, 1, n) * s_rot1
+        tr += rng.normal(0, 1, n) * s_trans
+        r2 += rng.normal(0, 1, n) * s_rot2
     heading = poses[:, 2] + r1
     poses[:, 0] += tr * np.cos(heading)
     poses[:, 1] += tr * np.sin(heading)

@@ -33,6 +33,7 @@ class SimRun:
     odom: np.ndarray        # (T, 4) the odometry the filter saw, odom (= map) frame
     seconds: float          # wall time spent in FastSlam.step
     updates: int
+    mount: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the laser in the base frame (x, y, yaw)
     scans: list = field(default_factory=list)   # ScanRecord of every scan, when recorded
     odoms: list = field(default_factory=list)   # OdomRecord of every odometry tick, when recorded
 
@@ -70,7 +71,7 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | None = None, sim: Mapp
     simulation = Simulation(w, sim_cfg, np.random.default_rng(seed), route=load_route(route_file))
     slam = FastSlam(slam_cfg)
     lidar = simulation.lidar
-    mount = (sim_cfg.laser_x, sim_cfg.laser_y, 0.0)
+    mount = lidar.mount
     truth, odom, scans, odoms = [], [], [], []
     spent, updates = 0.0, 0
     angle_min, increment = float(lidar.angles[0]), float(lidar.angles[1] - lidar.angles[0])
@@ -95,4 +96,4 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | None = None, sim: Mapp
         if tick.route_finished:
             break
     return SimRun(slam=slam, world=w, truth=np.array(truth), odom=np.array(odom), seconds=spent,
-                  updates=updates, scans=scans, odoms=odoms)
+                  updates=updates, mount=mount, scans=scans, odoms=odoms)

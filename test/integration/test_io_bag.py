@@ -8,7 +8,9 @@ import pytest
 
 from fastslam.io.bag import BagError, _pick, OdomRecord, ScanRecord, StaticTransform, read_bag, write_bag
 from fastslam.io.bag_write import BagWriter
+from fastslam.geometry import wrap_angle
 from fastslam.io.transforms import LaserMount
+from fastslam.scan import Scan
 
 pytest.importorskip("rosbags")
 
@@ -84,7 +86,9 @@ def test_mount_chain_with_yaw_and_upside_down_laser(tmp_path):
     assert mount.yaw == pytest.approx(0.5 + math.pi / 2, abs=1e-12)
     assert mount.upside_down and mount.found
     # beams mirror: laser angles -1.5, -1.0 point at yaw + 1.5, yaw + 1.0 in the base frame
-    np.testing.assert_allclose(mount.beam_angles(-1.5, 0.5, 2), [mount.yaw + 1.5, mount.yaw + 1.0])
+    scan = Scan.from_laser(np.ones(2), -1.5, 0.5, 0.1, 5.0, mount=(mount.x, mount.y, mount.yaw),
+                           upside_down=mount.upside_down)
+    np.testing.assert_allclose(scan.angles, wrap_angle(np.array([mount.yaw + 1.5, mount.yaw + 1.0])))
 
 
 def test_upright_yawed_laser(tmp_path):

@@ -44,11 +44,6 @@ class LaserMount:
     laser_frame: str = "laser"
     found: bool = True
 
-    def beam_angles(self, angle_min: float, angle_increment: float, count: int) -> NDArray[np.float64]:
-        """(count,) beam directions in the base frame [rad]."""
-        a = angle_min + angle_increment * np.arange(count)
-        return self.yaw - a if self.upside_down else self.yaw + a
-
 
 def quaternion_matrix(q: ArrayLike) -> NDArray[np.float64]:
     """(x, y, z, w) quaternion (need not be unit) -> 3x3 rotation matrix."""

@@ -70,10 +70,6 @@ class RouteFollower:
     def done(self) -> bool:
         return self.index >= len(self.waypoints)
 
-    @property
-    def target(self) -> NDArray[np.float64] | None:
-        return None if self.done else self.waypoints[self.index]
-
     def command(self, pose: ArrayLike) -> tuple[float, float]:
         """Velocity command (v [m/s], w [rad/s]) for the robot at pose (3,) (world frame); (0, 0) when done."""
         x, y, th = (float(v) for v in np.asarray(pose, dtype=float))

@@ -9,13 +9,11 @@ from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Quaternion, Transfor
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
 from sensor_msgs.msg import LaserScan
 
+from fastslam.frontend import Dropped as BadMessage  # a message the node drops, str() says why
 from fastslam.geometry import yaw_from_quaternion
-from fastslam.grid import GridMaps, logodds_to_occupancy
+from fastslam.grid import GridMaps
+from fastslam.io.transforms import mount_from_matrix, transform_matrix
 from fastslam.scan import Scan, laser_problem
-
-
-class BadMessage(ValueError):
-    """A message the node drops, with the reason for the log."""
 
 
 def quaternion_from_yaw(yaw: float) -> Quaternion:
@@ -27,6 +25,16 @@ def pose_msg(x: float, y: float, yaw: float) -> Pose:
     p.position.x, p.position.y = float(x), float(y)
     p.orientation = quaternion_from_yaw(float(yaw))
     return p
+
+
+def transform_msg(stamp: rospy.Time, parent: str, child: str, x: float, y: float, yaw: float,
+                  z: float = 0.0) -> TransformStamped:
+    """A planar transform parent -> child."""
+    t = TransformStamped()
+    t.header.stamp, t.header.frame_id, t.child_frame_id = stamp, parent, child
+    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = float(x), float(y), float(z)
+    t.transform.rotation = quaternion_from_yaw(float(yaw))
+    return t
 
 
 def odom_pose(msg) -> np.ndarray:
@@ -56,26 +64,31 @@ def scan_from_msg(msg: LaserScan, mount: tuple[float, float, float], upside_down
 
 
 def mount_from_transform(t: TransformStamped) -> tuple[tuple[float, float, float], bool]:
-    """Laser pose (x, y, yaw) in the base frame and whether it is upside down."""
-    q = t.transform.rotation
-    x, y, z, w = q.x, q.y, q.z, q.w
-    r00 = 1 - 2 * (y * y + z * z)
-    r10 = 2 * (x * y + w * z)
-    r22 = 1 - 2 * (x * x + y * y)
-    if abs(abs(r22) - 1) > 0.01:
+    """Laser pose (x, y, yaw) in the base frame and whether it is upside down (the
+    offline runner's rule, fastslam.io.transforms), for a laser mounted flat."""
+    tr, q = t.transform.translation, t.transform.rotation
+    m = transform_matrix((tr.x, tr.y, tr.z), (q.x, q.y, q.z, q.w))
+    if abs(abs(m[2, 2]) - 1) > 0.01:
         raise BadMessage("laser is not mounted planar (its z axis is not vertical)")
-    return (t.transform.translation.x, t.transform.translation.y, math.atan2(r10, r00)), r22 < 0
+    mount = mount_from_matrix(m, t.header.frame_id, t.child_frame_id)
+    return (mount.x, mount.y, mount.yaw), mount.upside_down
 
 
 def grid_msgs(grid: GridMaps, n: int, frame: str, stamp: rospy.Time) -> tuple[OccupancyGrid, MapMetaData]:
     """OccupancyGrid and MapMetaData of particle n's map."""
-    h, w = grid.shape
-    meta = MapMetaData(map_load_time=stamp, resolution=grid.resolution, width=w, height=h)
-    meta.origin = pose_msg(grid.origin[0], grid.origin[1], 0.0)
+    return occupancy_msgs(grid.occupancy(n), grid.resolution, grid.origin, frame, stamp)
+
+
+def occupancy_msgs(occupancy: np.ndarray, resolution: float, origin: np.ndarray, frame: str,
+                   stamp: rospy.Time) -> tuple[OccupancyGrid, MapMetaData]:
+    """OccupancyGrid and MapMetaData of (H, W) int8 occupancy values."""
+    h, w = occupancy.shape
+    meta = MapMetaData(map_load_time=stamp, resolution=resolution, width=w, height=h)
+    meta.origin = pose_msg(origin[0], origin[1], 0.0)
     msg = OccupancyGrid(info=meta)
     msg.header.frame_id, msg.header.stamp = frame, stamp
     # int8[] serialises from a sequence of ints (bytes would read as 0..255).
-    msg.data = logodds_to_occupancy(grid.logodds[n], grid.scale).ravel().tolist()
+    msg.data = occupancy.ravel().tolist()
     return msg, meta
 
 

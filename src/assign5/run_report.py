@@ -24,28 +24,28 @@ from fastslam.io.png import render_map, write_png
 from fastslam.metrics import run_quality
 from fastslam.sim.world import load_world
 
+from . import convert
+
 
 class RunRecorder:
     """Collects ground truth, the SLAM outputs and timing while a run goes on."""
 
     def __init__(self, slam_ns: str = "slam") -> None:
+        # The map is fetched once at the end (dynamic_map service), not subscribed.
         self.lock = threading.Lock()
         self.truth: list[tuple[float, float, float, float]] = []
         self.update_ms: list[float] = []
         self.path: Path | None = None
-        self.map: OccupancyGrid | None = None
         self.done = threading.Event()
-        self.slam_ns = slam_ns
         rospy.Subscriber("ground_truth", Odometry, self._on_truth, queue_size=100)
         rospy.Subscriber(f"{slam_ns}/update_time", Float64, self._on_time, queue_size=100)
         rospy.Subscriber(f"{slam_ns}/trajectory", Path, self._on_path, queue_size=1)
-        rospy.Subscriber("map", OccupancyGrid, self._on_map, queue_size=1)
         rospy.Subscriber("route_done", Bool, self._on_done, queue_size=1)
 
     def _on_truth(self, msg: Odometry) -> None:
-        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        pose = convert.odom_pose(msg)
         with self.lock:
-            self.truth.append((msg.header.stamp.to_sec(), p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)))
+            self.truth.append((msg.header.stamp.to_sec(), *pose))
 
     def _on_time(self, msg: Float64) -> None:
         with self.lock:
@@ -54,10 +54,6 @@ class RunRecorder:
     def _on_path(self, msg: Path) -> None:
         with self.lock:
             self.path = msg
-
-    def _on_map(self, msg: OccupancyGrid) -> None:
-        with self.lock:
-            self.map = msg
 
     def _on_done(self, msg: Bool) -> None:
         if msg.data:

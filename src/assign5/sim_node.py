@@ -8,7 +8,6 @@ sleeps on the wall clock, never on rospy time (that would wait on its own /clock
 """
 from __future__ import annotations
 
-import math
 import sys
 import threading
 import time
@@ -17,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import rospy
 import tf2_ros
-from geometry_msgs.msg import Quaternion, TransformStamped, Twist
+from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
@@ -26,6 +25,8 @@ from std_msgs.msg import Bool
 from fastslam.config import ConfigError
 from fastslam.sim import SimConfig, Simulation, World, WorldError, load_route, load_world
 from fastslam.sim.sim import Tick
+
+from . import convert
 
 
 def default_worlds_dir() -> Path:
@@ -73,15 +74,10 @@ def load() -> tuple[SimConfig, World, np.ndarray | None]:
     return cfg, world, route
 
 
-def _quat(yaw: float) -> Quaternion:
-    return Quaternion(0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
-
-
 def _odometry(stamp: rospy.Time, frame: str, pose: np.ndarray, v: float, w: float, var: float) -> Odometry:
     msg = Odometry()
     msg.header.stamp, msg.header.frame_id, msg.child_frame_id = stamp, frame, "base_footprint"
-    msg.pose.pose.position.x, msg.pose.pose.position.y = float(pose[0]), float(pose[1])
-    msg.pose.pose.orientation = _quat(float(pose[2]))
+    msg.pose.pose = convert.pose_msg(*pose)
     msg.twist.twist.linear.x, msg.twist.twist.angular.z = v, w
     cov = [0.0] * 36
     for i in (0, 7, 35):               # x, y, yaw; z/roll/pitch are fixed in 2D
@@ -89,14 +85,6 @@ def _odometry(stamp: rospy.Time, frame: str, pose: np.ndarray, v: float, w: floa
     msg.pose.covariance = cov
     msg.twist.covariance = cov
     return msg
-
-
-def _transform(stamp: rospy.Time, parent: str, child: str, x: float, y: float, z: float, yaw: float) -> TransformStamped:
-    t = TransformStamped()
-    t.header.stamp, t.header.frame_id, t.child_frame_id = stamp, parent, child
-    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = x, y, z
-    t.transform.rotation = _quat(yaw)
-    return t
 
 
 class SimNode:
@@ -154,8 +142,8 @@ class SimNode:
     def _publish_static(self, stamp: rospy.Time) -> None:
         c = self.cfg
         self.tf_static.sendTransform([
-            _transform(stamp, "base_footprint", "base_link", 0.0, 0.0, c.base_link_z, 0.0),
-            _transform(stamp, "base_link", "base_scan", c.laser_x, c.laser_y, c.laser_z, 0.0)])
+            convert.transform_msg(stamp, "base_footprint", "base_link", 0.0, 0.0, 0.0, z=c.base_link_z),
+            convert.transform_msg(stamp, "base_link", "base_scan", c.laser_x, c.laser_y, 0.0, z=c.laser_z)])
 
     def _publish(self, tick: Tick) -> None:
         stamp = self._stamp(tick.t)
@@ -165,8 +153,7 @@ class SimNode:
         if tick.odom_due:
             odom = sim.odom.pose
             self.pub_odom.publish(_odometry(stamp, "odom", odom, *sim.odom_twist, self.odom_var))
-            self.tf.sendTransform(_transform(stamp, "odom", "base_footprint", float(odom[0]), float(odom[1]),
-                                             0.0, float(odom[2])))
+            self.tf.sendTransform(convert.transform_msg(stamp, "odom", "base_footprint", *odom))
             self.pub_truth.publish(_odometry(stamp, "world", sim.robot.pose, sim.robot.v, sim.robot.w, 0.0))
         if tick.scan is not None:
             ranges = tick.scan if self.cfg.no_return == "inf" else np.where(np.isinf(tick.scan), 0.0, tick.scan)

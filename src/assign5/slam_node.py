@@ -9,7 +9,7 @@ import traceback
 import numpy as np
 import rospy
 import tf2_ros
-from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped, TransformStamped
+from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetMap, GetMapResponse
 from sensor_msgs.msg import LaserScan
@@ -19,7 +19,7 @@ from std_srvs.srv import Trigger, TriggerResponse
 from fastslam.config import SlamConfig
 from fastslam.geometry import compose, inverse
 from fastslam.io.mapfile import MapSaveError, save_map
-from fastslam.frontend import Dropped, Frontend
+from fastslam.frontend import Dropped, Frontend, drop_key
 from fastslam.slam import FastSlam
 
 from . import convert
@@ -75,13 +75,13 @@ class SlamNode:
             with self.lock:
                 self.front.add_odom(msg.header.stamp.to_sec(), pose)
                 self._log_events()
-        except (BadMessage, Dropped) as err:
+        except Dropped as err:  # convert's BadMessage is Dropped too
             self._drop(f"odometry: {err}")
 
     def on_scan(self, msg: LaserScan) -> None:
         try:
             self._process(msg)
-        except (BadMessage, Dropped) as err:
+        except Dropped as err:  # convert's BadMessage is Dropped too
             self._drop(str(err))
         except Exception:  # a callback must never take the node down
             rospy.logerr_throttle(5.0, "scan update failed:\n" + traceback.format_exc())
@@ -93,8 +93,8 @@ class SlamNode:
         if now > 0 and stamp > now + self.cfg.max_future:
             raise BadMessage(f"scan stamped {stamp - now:.1f} s in the future")
         self._wait_for_odom(stamp)
+        mount, upside_down = self._mount(msg.header.frame_id)  # may wait for tf: not under the lock
         with self.lock:
-            mount, upside_down = self._mount(msg.header.frame_id)
             try:
                 info = self.front.add_scan(convert.scan_from_msg(msg, mount, upside_down))
             finally:
@@ -148,7 +148,7 @@ class SlamNode:
         return self.mounts[frame]
 
     def _drop(self, why: str) -> None:
-        key = why.split(":")[0]
+        key = drop_key(why)
         self.dropped[key] = self.dropped.get(key, 0) + 1
         rospy.logwarn_throttle(5.0, f"dropping message: {why} ({self.dropped[key]} so far)")
 
@@ -178,13 +178,18 @@ class SlamNode:
 
     def publish_map(self, stamp: rospy.Time | None = None) -> None:
         stamp = stamp or rospy.Time.now()
-        with self.lock:
-            grid, best = self.slam.grid, self.slam.best
-            msg, meta = convert.grid_msgs(grid, best, self.cfg.map_frame, stamp)
-            order = np.argsort(-self.slam.weights)
-            debug = [convert.grid_msgs(grid, int(i), self.cfg.map_frame, stamp)[0]
-                     for i in order[:len(self.pub_debug)]]
-            path = convert.path_msg(self.slam.trajectory(), self.cfg.map_frame, stamp)
+        frame = self.cfg.map_frame
+        with self.lock:  # copies only: the messages are built after the lock is released
+            grid = self.slam.grid
+            shown = [self.slam.best]
+            if self.pub_debug:
+                shown += np.argsort(-self.slam.weights)[:len(self.pub_debug)].tolist()
+            maps = [grid.occupancy(int(i)) for i in shown]
+            resolution, origin = grid.resolution, grid.origin.copy()
+            trajectory = self.slam.trajectory()
+        msg, meta = convert.occupancy_msgs(maps[0], resolution, origin, frame, stamp)
+        debug = [convert.occupancy_msgs(m, resolution, origin, frame, stamp)[0] for m in maps[1:]]
+        path = convert.path_msg(trajectory, frame, stamp)
         self.pub_map.publish(msg)
         self.pub_meta.publish(meta)
         self.pub_path.publish(path)
@@ -198,11 +203,8 @@ class SlamNode:
         self.last_tf_time = now
         with self.lock:
             x, y, yaw = self.map_to_odom
-        t = TransformStamped()
-        t.header.stamp = now + rospy.Duration(self.cfg.tf_delay)
-        t.header.frame_id, t.child_frame_id = self.cfg.map_frame, self.cfg.odom_frame
-        t.transform.translation.x, t.transform.translation.y = float(x), float(y)
-        t.transform.rotation = convert.quaternion_from_yaw(float(yaw))
+        t = convert.transform_msg(now + rospy.Duration(self.cfg.tf_delay), self.cfg.map_frame,
+                                  self.cfg.odom_frame, x, y, yaw)
         try:
             self.tf_out.sendTransform(t)
         except rospy.ROSException:

@@ -7,6 +7,8 @@ unusable scans are dropped with a reason.
 """
 from __future__ import annotations
 
+import re
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,6 +21,12 @@ from .slam import FastSlam, StepInfo
 
 class Dropped(ValueError):
     """A message that is not used; str() says why."""
+
+
+def drop_key(why: str) -> str:
+    """The kind of drop a reason names, to count by: without the detail after a colon
+    and with numbers replaced, so "latest odometry is +0.61 s" and "+0.72 s" count as one."""
+    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", why.split(":")[0]).strip()
 
 
 @dataclass

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from .config import ConfigError, SlamConfig, parse_override
-from .frontend import Dropped, Frontend
+from .frontend import Dropped, Frontend, drop_key
 from .io.bag import BagData, BagError, OdomRecord, read_bag
 from .io.mapfile import save_map
 from .io.png import render_map, write_png
@@ -77,7 +77,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
                 result.updates += 1
                 result.update_ms.append(1000.0 * info.seconds)
         except Dropped as err:
-            key = str(err).split(" (")[0]
+            key = drop_key(str(err))
             result.dropped[key] = result.dropped.get(key, 0) + 1
         result.events += front.events
         front.events.clear()

@@ -90,3 +90,13 @@ def test_laser_problems(args, problem):
 def test_fence_post_and_reversed_scans_are_fine():
     assert laser_problem(360, 0.0, 2 * np.pi / 360, 0.12, 3.5, 2 * np.pi) is None
     assert laser_problem(360, 0.0, -np.pi / 180, 0.12, 3.5, -np.pi / 180 * 359) is None
+
+
+def test_drop_key_counts_reasons_with_different_values_as_one():
+    from fastslam.frontend import drop_key
+
+    a = drop_key("no odometry at the scan's time (latest odometry is +0.61 s newer)")
+    b = drop_key("no odometry at the scan's time (latest odometry is -1.20 s newer)")
+    assert a == b == "no odometry at the scan's time (latest odometry is # s newer)"
+    assert drop_key("no transform base -> 'laser' in tf: would extrapolate") == "no transform base -> 'laser' in tf"
+    assert drop_key("odometry with NaN or inf") == "odometry with NaN or inf"

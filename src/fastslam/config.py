@@ -29,7 +29,8 @@ class SlamConfig:
 
     # Filter
     particles: int = _num(20, 1, 10000, "number of particles N")
-    seed: int | None = field(default=None, metadata={"range": (0, 2**32 - 1), "doc": "RNG seed; null = fresh"})
+    # -1, not null: the ROS parameter server cannot hold a None
+    seed: int = _num(-1, -1, 2**32 - 1, "RNG seed; -1 = a fresh one each run")
     # Map (assignment 3.1): a grid centred on the start pose, all cells unknown
     map_resolution: float = _num(0.05, 0.005, 1.0, "cell size [m]")
     map_width: float = _num(10.0, 0.5, 2000.0, "initial map extent along x [m]")
@@ -110,6 +111,11 @@ class SlamConfig:
         """(H, W) cells of the initial grid."""
         return (int(round(self.map_height / self.map_resolution)),
                 int(round(self.map_width / self.map_resolution)))
+
+    @property
+    def rng_seed(self) -> int | None:
+        """The seed for numpy's default_rng: None (fresh entropy) for seed -1."""
+        return None if self.seed < 0 else self.seed
 
     @property
     def motion_sigmas(self) -> np.ndarray:

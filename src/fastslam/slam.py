@@ -49,7 +49,7 @@ class FastSlam:
 
     def __init__(self, cfg: SlamConfig, rng: np.random.Generator | None = None) -> None:
         self.cfg = cfg
-        self.rng = rng if rng is not None else np.random.default_rng(cfg.seed)
+        self.rng = rng if rng is not None else np.random.default_rng(cfg.rng_seed)
         self.reset()
 
     def reset(self) -> None:

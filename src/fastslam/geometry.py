@@ -10,11 +10,23 @@ def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:
     return (np.asarray(a, dtype=float) + np.pi) % (2 * np.pi) - np.pi
 
 
+def cos_sin(angles: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """cos and sin of angles, from a contiguous copy of a strided view.
+
+    numpy picks its vectorised or its scalar cos/sin (which differ in the last bit)
+    by whether input and output memory may overlap; a strided view's extent runs past
+    its last element, so the choice, and the result, depended on where the output
+    happened to be allocated: runs with equal inputs gave different poses.
+    """
+    a = np.array(angles, dtype=float)  # a contiguous copy (0-d stays 0-d)
+    return np.cos(a), np.sin(a)
+
+
 def compose(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     """a (+) b: pose b expressed in a's frame, returned in a's parent frame. Broadcasts."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    c, s = cos_sin(a[..., 2])
     return np.stack([a[..., 0] + c * b[..., 0] - s * b[..., 1],
                      a[..., 1] + s * b[..., 0] + c * b[..., 1],
                      wrap_angle(a[..., 2] + b[..., 2])], axis=-1)
@@ -23,7 +35,7 @@ def compose(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
 def inverse(a: ArrayLike) -> NDArray[np.float64]:
     """The pose p with a (+) p = identity."""
     a = np.asarray(a, dtype=float)
-    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    c, s = cos_sin(a[..., 2])
     return np.stack([-c * a[..., 0] - s * a[..., 1],
                      s * a[..., 0] - c * a[..., 1],
                      wrap_angle(-a[..., 2])], axis=-1)
@@ -46,3 +58,36 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
     # w^2 + x^2 - y^2 - z^2 rather than 1 - 2(y^2 + z^2): the same for a unit quaternion,
     # and scale-free, so a non-normalised one gives the right heading too
     return float(np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z))
+
+
+# Closed forms for stacks of 3x3 matrices. numpy.linalg hands each matrix to LAPACK,
+# whose results on Debian's reference build vary in the last bit with the alignment of
+# its work buffer: the same inputs gave different poses from run to run.
+def inv3(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(..., 3, 3) inverses by the adjugate."""
+    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
+    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
+    g, h, k = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    co = np.stack([e * k - f * h, c * h - b * k, b * f - c * e,
+                   f * g - d * k, a * k - c * g, c * d - a * f,
+                   d * h - e * g, b * g - a * h, a * e - b * d], axis=-1).reshape(m.shape)
+    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
+    return co / det[..., None, None]
+
+
+def solve3(m: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(..., 3) solutions x of m (..., 3, 3) x = v (..., 3)."""
+    inv = inv3(m)
+    return inv[..., 0] * v[..., 0, None] + inv[..., 1] * v[..., 1, None] + inv[..., 2] * v[..., 2, None]
+
+
+def cholesky3(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(..., 3, 3) lower-triangular L with L L^T = m (m symmetric positive definite)."""
+    out = np.zeros_like(m)
+    out[..., 0, 0] = l00 = np.sqrt(m[..., 0, 0])
+    out[..., 1, 0] = l10 = m[..., 1, 0] / l00
+    out[..., 2, 0] = l20 = m[..., 2, 0] / l00
+    out[..., 1, 1] = l11 = np.sqrt(m[..., 1, 1] - l10 * l10)
+    out[..., 2, 1] = l21 = (m[..., 2, 1] - l20 * l10) / l11
+    out[..., 2, 2] = np.sqrt(m[..., 2, 2] - l20 * l20 - l21 * l21)
+    return out

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .geometry import wrap_angle
+from .geometry import cholesky3, cos_sin, inv3, solve3, wrap_angle
 from .grid import GridMaps, scratch
 from .scan import Beams
 
@@ -87,7 +87,7 @@ def _end_points(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
 
 def _world(poses: NDArray[np.float64], local: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     """End points of local (M, 2) seen from poses (..., 3): x, y each (..., M)."""
-    c, s = np.cos(poses[..., 2, None]), np.sin(poses[..., 2, None])
+    c, s = cos_sin(poses[..., 2, None])
     x = poses[..., 0, None] + c * local[:, 0] - s * local[:, 1]
     y = poses[..., 1, None] + s * local[:, 0] + c * local[:, 1]
     return x, y
@@ -155,7 +155,7 @@ def _pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[
     oa = wrap_angle(poses[:, 2] - start[:, 2])[:, None] + turns[None, :]                # (N, A)
     along, across = ox, oy  # an isotropic prior needs no turning
     if prior[0] != prior[1]:
-        c, s_ = np.cos(start[:, 2, None]), np.sin(start[:, 2, None])
+        c, s_ = cos_sin(start[:, 2, None])
         along, across = c * ox + s_ * oy, c * oy - s_ * ox                               # start's frame
     log_prior = -0.5 * (((along / prior[0]) ** 2 + (across / prior[1]) ** 2)[:, None, :]
                         + ((oa / prior[2]) ** 2)[:, :, None])
@@ -326,7 +326,7 @@ def refine_poses(slam: FastSlam, beams: Beams,
     if cfg.match_refine == "icp":
         pose, info = _icp(grid, pose, local, _normals(beams, sel), centre, spread)
         if cfg.match_spread == "match":
-            cov = np.linalg.inv(info)
+            cov = inv3(info)
     else:
         pose = _hill_climb(grid, pose, local, dth)
     return _accept(slam, pose, local, half, w_origin, known, cov)
@@ -375,7 +375,8 @@ def _accept(slam: FastSlam, pose: NDArray[np.float64], local: NDArray[np.float64
     if cov is None:
         sample = pose + z * np.array([cfg.match_sigma_xy, cfg.match_sigma_xy, cfg.match_sigma_theta])
     else:  # the match's own uncertainty: wide only along what the scan cannot tell
-        sample = pose + (np.linalg.cholesky(cov) @ z[..., None])[..., 0]
+        low = cholesky3(cov)
+        sample = pose + (low * z[:, None, :]).sum(axis=2)  # L z per particle
     sample[:, 2] = wrap_angle(sample[:, 2])
     slam.poses[trusted] = sample[trusted]
     return trusted
@@ -426,14 +427,14 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
     kernel = np.empty((len(shift), n, len(local)), dtype=grid.logodds.dtype)
     cells = grid.logodds.reshape(-1)
     # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
-    c0, s0 = np.cos(centre[:, 2]), np.sin(centre[:, 2])
+    c0, s0 = cos_sin(centre[:, 2])
     ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
     p_xx, p_yy, p_xy = ia * c0 ** 2 + ic * s0 ** 2, ia * s0 ** 2 + ic * c0 ** 2, (ia - ic) * c0 * s0
     p_tt = 1.0 / spread[2] ** 2
     has_normal = np.any(normals != 0, axis=1)
     pose = pose.copy()
     for _ in range(ICP_ITERATIONS):
-        c, s = np.cos(pose[:, 2, None]), np.sin(pose[:, 2, None])
+        c, s = cos_sin(pose[:, 2, None])
         rx = c * local[:, 0] - s * local[:, 1]                         # (N, M) end point - position
         ry = s * local[:, 0] + c * local[:, 1]
         u = (pose[:, 0, None] + rx - grid.origin[0]) / res
@@ -479,7 +480,7 @@ def _icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], 
         grad = np.stack([fx.sum(1) + p_xx * off[:, 0] + p_xy * off[:, 1],
                          fy.sum(1) + p_xy * off[:, 0] + p_yy * off[:, 1],
                          (rx * fy - ry * fx).sum(1) + p_tt * off[:, 2]], axis=1)
-        pose -= np.linalg.solve(hess, grad[..., None])[..., 0]
+        pose -= solve3(hess, grad)
     pose[:, 2] = wrap_angle(pose[:, 2])
     return pose, hess
 

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from . import raycast
 from .config import SlamConfig
-from .geometry import circular_mean, compose, wrap_angle
+from .geometry import circular_mean, compose, cos_sin, wrap_angle
 from .grid import GridMaps
 from .motion import odometry_std, sample_motion_assignment, sample_motion_odometry
 from .resample import low_variance_indices, neff, slot_parents
@@ -168,7 +168,7 @@ class FastSlam:
     def _beam_frames(self, beams: Beams) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(N, 2) beam origins and (N, M) beam directions of every particle, map frame."""
         p = self.poses
-        c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+        c, s = cos_sin(p[:, 2])
         mx, my = beams.mount
         origins = np.stack([p[:, 0] + c * mx - s * my, p[:, 1] + s * mx + c * my], axis=1)
         return origins, p[:, 2, None] + beams.angles[None, :]

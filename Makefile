@@ -34,7 +34,7 @@ demo: $(SETUP_STAMP)
 	@bash scripts/demo.sh
 
 bench: $(SETUP_STAMP)
-	@cd $(CURDIR) && PYTHONPATH=src $(PY) -m fastslam.bench
+	@cd $(CURDIR) && PYTHONPATH=src:. $(PY) -m bench.speed
 
 screenshot: $(SETUP_STAMP)
 	@bash scripts/screenshot.sh

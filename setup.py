@@ -3,6 +3,6 @@ from setuptools import setup
 from catkin_pkg.python_setup import generate_distutils_setup
 
 setup(**generate_distutils_setup(
-    packages=["fastslam", "fastslam.sim", "fastslam.io", "assign5"],
+    packages=["fastslam", "fastslam.filter", "fastslam.match", "fastslam.io", "fastslam.eval", "fastslam.sim", "assign5"],
     package_dir={"": "src"},
 ))

@@ -18,9 +18,9 @@ from std_srvs.srv import Trigger, TriggerResponse
 
 from fastslam.config import SlamConfig
 from fastslam.geometry import compose, inverse
-from fastslam.io.mapfile import MapSaveError, save_map
-from fastslam.frontend import Dropped, Frontend, drop_key
-from fastslam.slam import FastSlam
+from fastslam.io.map_files import MapSaveError, save_map
+from fastslam.filter.frontend import Dropped, Frontend, drop_key
+from fastslam.filter.slam import FastSlam
 
 from . import convert
 from .convert import BadMessage

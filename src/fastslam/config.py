@@ -16,9 +16,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .fields import ConfigError, check_fields, coerce
-from .fields import choice as _choice
-from .fields import num as _num
+from fastslam.fields import ConfigError, check_fields, coerce
+from fastslam.fields import choice as _choice
+from fastslam.fields import num as _num
 
 __all__ = ["ConfigError", "SlamConfig", "parse_override"]
 

@@ -3,8 +3,8 @@
     python -m fastslam.evaluate REFERENCE ESTIMATE [--max-dt 0.05] [--interpolate] [--delta 1] [--json]
 
 Both files hold ``t x y theta`` lines (``#`` comments allowed), e.g. ``out.bag.gt.txt``
-from ``python -m fastslam.carmen`` and a SLAM run's trajectory. See
-:mod:`fastslam.trajectory_metrics` for the definitions.
+from ``python -m fastslam.carmen_to_bag`` and a SLAM run's trajectory. See
+:mod:`fastslam.eval.trajectory` for the definitions.
 """
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import argparse
 import json
 import sys
 
-from fastslam.io.trajectory import TrajectoryError, read_trajectory
-from fastslam.trajectory_metrics import TrajectoryScores, score
+from fastslam.io.trajectory_files import TrajectoryError, read_trajectory
+from fastslam.eval.trajectory import TrajectoryScores, score
 
 
 def format_table(s: TrajectoryScores) -> str:

@@ -22,14 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from .config import ConfigError, SlamConfig, parse_override
-from .frontend import Dropped, Frontend, drop_key
-from .io.bag import BagData, BagError, OdomRecord, read_bag
-from .io.mapfile import save_map
-from .io.png import render_map, write_png
-from .io.trajectory import write_trajectory
-from .scan import Scan, laser_problem
-from .slam import FastSlam
+from fastslam.config import ConfigError, SlamConfig, parse_override
+from fastslam.filter.frontend import Dropped, Frontend, drop_key
+from fastslam.io.bag_reader import BagData, BagError, OdomRecord, read_bag
+from fastslam.io.map_files import save_map
+from fastslam.eval.render import render_map, write_png
+from fastslam.io.trajectory_files import write_trajectory
+from fastslam.filter.scan import Scan, laser_problem
+from fastslam.filter.slam import FastSlam
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "slam.yaml"
 

@@ -4,8 +4,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fastslam.bench_accuracy import INTEL_LOG
-from fastslam.bench_matcher import intel_scans, match_errors
+from bench.accuracy import INTEL_LOG
+from bench.matcher import intel_scans, match_errors
 from fastslam.config import SlamConfig
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.io.bag import BagError, _pick, OdomRecord, ScanRecord, StaticTransform, read_bag, write_bag
-from fastslam.io.bag_write import BagWriter
+from fastslam.io.bag_reader import BagError, _pick, OdomRecord, ScanRecord, StaticTransform, read_bag, write_bag
+from fastslam.io.bag_writer import BagWriter
 from fastslam.geometry import wrap_angle
-from fastslam.io.transforms import LaserMount
-from fastslam.scan import Scan
+from fastslam.transforms import LaserMount
+from fastslam.filter.scan import Scan
 
 pytest.importorskip("rosbags")
 

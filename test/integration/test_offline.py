@@ -5,9 +5,9 @@ import numpy as np
 
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
-from fastslam.io.bag import StaticTransform, read_bag, write_bag
-from fastslam.io.mapfile import load_map
-from fastslam.io.trajectory import read_trajectory
+from fastslam.io.bag_reader import StaticTransform, read_bag, write_bag
+from fastslam.io.map_files import load_map
+from fastslam.io.trajectory_files import read_trajectory
 
 
 def test_bag_replay_equals_the_direct_run(tmp_path):

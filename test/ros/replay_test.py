@@ -21,8 +21,8 @@ from nav_msgs.msg import Path
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
 from assign5.params import split_params  # noqa: E402
 from fastslam import offline, simrun  # noqa: E402
-from fastslam.io.bag import BagData, StaticTransform, read_bag, write_bag  # noqa: E402
-from fastslam.metrics import trajectory_errors  # noqa: E402
+from fastslam.io.bag_reader import BagData, StaticTransform, read_bag, write_bag  # noqa: E402
+from fastslam.eval.maps import trajectory_errors  # noqa: E402
 
 
 class Replay(unittest.TestCase):

@@ -22,7 +22,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
-from fastslam.bench import room_ranges  # noqa: E402
+from bench.speed import room_ranges  # noqa: E402
 
 ANGLES = np.radians(np.arange(360.0))
 

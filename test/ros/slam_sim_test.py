@@ -124,8 +124,8 @@ class SlamOnSimulator(unittest.TestCase):
 
         from assign5.params import split_params
         from fastslam import offline
-        from fastslam.io.bag import read_bag
-        from fastslam.metrics import trajectory_errors
+        from fastslam.io.bag_reader import read_bag
+        from fastslam.eval.maps import trajectory_errors
 
         prefix = rospy.get_param("~bag_prefix")
         subprocess.run(["rosnode", "kill", "/record"], capture_output=True, timeout=30)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.io.carmen import CarmenError, flaser_geometry, read_log
+from fastslam.io.carmen_log import CarmenError, flaser_geometry, read_log
 from fastslam.io.carmen_bag import increasing_times, log_mount
 
 SNIPPET = """\

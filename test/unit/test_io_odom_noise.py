@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fastslam.geometry import wrap_angle
-from fastslam.io.odom_noise import (OdomNoise, integrate_deltas, noise_sigmas, noisy_odometry,
+from fastslam.sim.odometry_noise import (OdomNoise, integrate_deltas, noise_sigmas, noisy_odometry,
                                     odometry_deltas, perturb_deltas)
 
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from fastslam import raycast
-from fastslam.grid import GridMaps, logodds_to_occupancy
+from fastslam.filter import raycast
+from fastslam.filter.grid import GridMaps, logodds_to_occupancy
 
 RES = 0.1
 

@@ -4,12 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fastslam import scanmatch
-from fastslam.bench import room_ranges
+from fastslam.match import matcher as scanmatch
+from bench.speed import room_ranges
 from fastslam.config import SlamConfig
-from fastslam.grid import GridMaps
-from fastslam.scan import Beams, Scan, select_beams
-from fastslam.slam import FastSlam
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.scan import Beams, Scan, select_beams
+from fastslam.filter.slam import FastSlam
 
 ANGLES = np.radians(np.arange(360.0))
 
@@ -99,8 +99,8 @@ def test_pooled_flags_mark_blocks_with_an_occupied_cell():
 
 
 def test_returns_subset_spreads_the_returns_evenly():
-    from fastslam.scan import Beams
-    from fastslam.scanmatch import returns_subset
+    from fastslam.filter.scan import Beams
+    from fastslam.match.matcher import returns_subset
 
     hit = np.ones(100, dtype=bool)
     hit[::3] = False                                          # 66 returns

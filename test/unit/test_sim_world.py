@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fastslam.sim.pgm import mask_segments, read_pgm
+from fastslam.sim.map_world import mask_segments, read_pgm
 from fastslam.sim.world import World, WorldError, inside_polygon, load_world, world_from_dict
 
 WORLDS = Path(__file__).resolve().parents[2] / "worlds"

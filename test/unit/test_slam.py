@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from fastslam.bench import room_ranges
+from bench.speed import room_ranges
 from fastslam.config import SlamConfig
 from fastslam.geometry import compose, relative
-from fastslam.scan import Scan
-from fastslam.slam import FastSlam
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
 
 ANGLES = np.radians(np.arange(360.0))
 
@@ -115,7 +115,7 @@ def test_no_return_beams_clear_space_but_do_not_weigh():
 
 
 def test_pruned_history_keeps_every_living_particles_path(monkeypatch):
-    import fastslam.slam as slam_module
+    import fastslam.filter.slam as slam_module
 
     truth = square_path(120)
     odom = drifting_odometry(truth)

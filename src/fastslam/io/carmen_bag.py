@@ -2,7 +2,7 @@
 
 One odometry message (and one odom -> base_link tf) is written per scan, at the scan's
 logger timestamp. The odometry is the log's robot pose re-integrated with the noise
-model of :mod:`fastslam.io.odom_noise` (level 0 = the log's poses); the log's poses
+model of :mod:`fastslam.sim.odometry_noise` (level 0 = the log's poses); the log's poses
 themselves go to ``<bag>.gt.txt`` as the reference trajectory, the odometry to
 ``<bag>.odom.txt``.
 """
@@ -16,12 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fastslam.geometry import relative
-from fastslam.io.bag import OdomRecord, ScanRecord
-from fastslam.io.bag_write import BagWriter
-from fastslam.io.carmen import CarmenLog
-from fastslam.io.odom_noise import DEFAULT_ALPHAS, OdomNoise, noisy_odometry
-from fastslam.io.trajectory import write_trajectory
-from fastslam.io.transforms import StaticTransform
+from fastslam.io.bag_reader import OdomRecord, ScanRecord
+from fastslam.io.bag_writer import BagWriter
+from fastslam.io.carmen_log import CarmenLog
+from fastslam.sim.odometry_noise import DEFAULT_ALPHAS, OdomNoise, noisy_odometry
+from fastslam.io.trajectory_files import write_trajectory
+from fastslam.transforms import StaticTransform
 
 
 @dataclass(frozen=True)

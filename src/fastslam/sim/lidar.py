@@ -1,7 +1,7 @@
 """Exact, vectorised 2D ray casting against segments and circles (an LDS-01-like laser).
 
 Every beam is intersected analytically with every primitive at once ((M, K) arrays), so
-the simulated ranges do not share the grid approximations of ``fastslam.raycast``.
+the simulated ranges do not share the grid approximations of ``fastslam.filter.raycast``.
 """
 from __future__ import annotations
 

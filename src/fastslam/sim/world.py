@@ -229,7 +229,7 @@ def load_world(path: str | Path) -> World:
     except yaml.YAMLError as err:
         raise WorldError(f"{path}: not valid YAML: {err}") from None
     if isinstance(data, dict) and "image" in data:
-        from fastslam.sim.pgm import world_from_map_yaml
+        from fastslam.sim.map_world import world_from_map_yaml
 
         return world_from_map_yaml(data, path)
     try:

@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fastslam.io.transforms import StaticTransform
+from fastslam.transforms import StaticTransform
 
 if TYPE_CHECKING:
-    from fastslam.io.bag import OdomRecord, ScanRecord
+    from fastslam.io.bag_reader import OdomRecord, ScanRecord
 
 _TF_DEF = "geometry_msgs/TransformStamped[] transforms"
 
@@ -30,13 +30,13 @@ class BagWriter:
 
     def __init__(self, path: str | os.PathLike[str], *, scan_topic: str = "/scan",
                  odom_topic: str = "/odom", publish_tf: bool = True) -> None:
-        from fastslam.io.bag import BagError
+        from fastslam.io.bag_reader import BagError
 
         try:
             from rosbags.rosbag1 import Writer
             from rosbags.typesys import Stores, get_types_from_msg, get_typestore
         except ImportError as err:  # pragma: no cover - depends on the installation
-            from fastslam.io.bag import _INSTALL_HINT
+            from fastslam.io.bag_reader import _INSTALL_HINT
             raise BagError(_INSTALL_HINT) from err
         self.path = Path(path)
         if self.path.exists():

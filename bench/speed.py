@@ -1,6 +1,6 @@
 """`make bench`: speed, memory and accuracy figures (recorded in docs/benchmarks.md).
 
-    python -m fastslam.bench [speed] [intel] [office] [matcher] [longrun]    (default: all)
+    python -m bench.speed [speed] [intel] [office] [matcher] [longrun]    (default: all)
 
 speed: for N in {20, 50, 100} and beams in {60, 360}, on a 10 m and a 40 m square map
 at 0.05 m, the median milliseconds per full filter step and the peak memory of a fresh
@@ -21,9 +21,9 @@ import time
 
 import numpy as np
 
-from .config import SlamConfig
-from .scan import Scan
-from .slam import FastSlam
+from fastslam.config import SlamConfig
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
 
 
 def room_ranges(pose: np.ndarray, angles: np.ndarray, half: float = 2.5) -> np.ndarray:
@@ -67,7 +67,7 @@ def speed_case(particles: int, beams: int, size: float, steps: int = 25) -> dict
 def baseline_rss_mb() -> float:
     """Peak RSS of an interpreter that loaded the core and ran the speed case's steps
     with one particle on a 1 m map: Python, numpy and the code, but no maps."""
-    out = subprocess.run([sys.executable, "-m", "fastslam.bench", "--case", json.dumps([1, 60, 1.0])],
+    out = subprocess.run([sys.executable, "-m", "bench.speed", "--case", json.dumps([1, 60, 1.0])],
                          capture_output=True, text=True, check=True)
     return float(json.loads(out.stdout)["peak_rss_mb"])
 
@@ -80,7 +80,7 @@ def speed_suite() -> list[dict]:
     for size in (10.0, 40.0):
         for n in (20, 50, 100):
             for beams in (60, 360):
-                out = subprocess.run([sys.executable, "-m", "fastslam.bench", "--case",
+                out = subprocess.run([sys.executable, "-m", "bench.speed", "--case",
                                       json.dumps([n, beams, size])],
                                      capture_output=True, text=True, check=True)
                 row = json.loads(out.stdout)
@@ -102,9 +102,9 @@ def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> li
     """Drives the office loop again and again for `minutes` of simulated time."""
     from pathlib import Path
 
-    from .sim.route import load_route
-    from .sim.sim import SimConfig, Simulation
-    from .sim.world import load_world
+    from fastslam.sim.route import load_route
+    from fastslam.sim.sim import SimConfig, Simulation
+    from fastslam.sim.world import load_world
 
     root = Path(__file__).resolve().parents[2]
     world = load_world(root / "worlds" / "office.yaml")
@@ -156,15 +156,15 @@ def main(argv: list[str] | None = None) -> int:
         if suite == "speed":
             speed_suite()
         elif suite == "intel":
-            from .bench_accuracy import intel_suite
+            from bench.accuracy import intel_suite
 
             intel_suite()
         elif suite == "office":
-            from .bench_accuracy import office_suite
+            from bench.accuracy import office_suite
 
             office_suite()
         elif suite == "matcher":
-            from .bench_matcher import main as matcher_main
+            from bench.matcher import main as matcher_main
 
             for data in ("intel", "office"):
                 matcher_main([data])

@@ -1,13 +1,13 @@
 """Accuracy benchmark on the Intel Research Lab log: improved mode vs the assignment.
 
 The log's poses are the corrected trajectory; the filter gets odometry re-integrated
-from them with the noise model of :mod:`fastslam.io.odom_noise` (level 1, seeded) and
+from them with the noise model of :mod:`fastslam.sim.odometry_noise` (level 1, seeded) and
 every FLASER scan. For each configuration and seed it prints ATE (after the best
 rigid 2D alignment) and RPE (consecutive processed scans) of the best particle's
 trajectory, wall time, milliseconds per processed scan and the peak memory of the
 process (each case runs in its own interpreter), plus a dead-reckoning row.
 
-    python -m fastslam.bench_accuracy [--seeds 0 1 2] [--level 1.0] [--office]
+    python -m bench.accuracy [--seeds 0 1 2] [--level 1.0] [--office]
 
 --office runs the simulated office loop instead (office_suite: fastslam.simrun, no
 ROS), the improved mode with the LDS-01's 3.5 m range against the assignment.
@@ -24,13 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import SlamConfig
-from .geometry import relative
-from .io.carmen import read_log
-from .io.odom_noise import noisy_odometry
-from .scan import Scan
-from .slam import FastSlam
-from .trajectory_metrics import ate, rpe
+from fastslam.config import SlamConfig
+from fastslam.geometry import relative
+from fastslam.io.carmen_log import read_log
+from fastslam.sim.odometry_noise import noisy_odometry
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
+from fastslam.eval.trajectory import ate, rpe
 
 ROOT = Path(__file__).resolve().parents[2]
 # shared/ lies beside the repository (CI clones main next to it), /work/shared here
@@ -89,7 +89,7 @@ def dead_reckoning(seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG)
 
 def _case_in_own_process(flag: str, args: list) -> dict:
     """One case run by this module in a fresh interpreter, so its peak memory is its own."""
-    out = subprocess.run([sys.executable, "-m", "fastslam.bench_accuracy", flag, json.dumps(args)],
+    out = subprocess.run([sys.executable, "-m", "bench.accuracy", flag, json.dumps(args)],
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout)
 
@@ -131,7 +131,7 @@ LDS01 = {"max_range": 3.5, "no_return_range": 3.5, "linear_update": 0.2, "angula
 
 def office_case(name: str, seed: int, world: str = "office") -> dict:
     """One simulated run of the office route (fastslam.simrun, no ROS) and its figures."""
-    from .simrun import run
+    from fastslam.simrun import run
 
     overrides: dict = {"seed": seed, **(LDS01 if name == "improved" else {})}
     if PARTICLES.get(name):

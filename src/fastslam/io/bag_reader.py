@@ -15,7 +15,7 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 from numpy.typing import NDArray
 
-from fastslam.io.transforms import LaserMount, StaticTransform, mount_from_matrix, transform_matrix
+from fastslam.transforms import LaserMount, StaticTransform, mount_from_matrix, transform_matrix
 
 __all__ = ["BagData", "BagError", "LaserMount", "OdomRecord", "ScanRecord", "StaticTransform",
            "laser_mount", "read_bag", "write_bag"]
@@ -227,7 +227,7 @@ def write_bag(path: str | os.PathLike[str], scans: Iterable[ScanRecord], odoms: 
               scan_topic: str = "/scan", odom_topic: str = "/odom") -> Path:
     """Write a ROS 1 bag: LaserScan, Odometry, /tf (odom -> base per odometry message)
     and latched /tf_static. Bag time = each message's stamp. ``path`` must not exist."""
-    from fastslam.io.bag_write import BagWriter
+    from fastslam.io.bag_writer import BagWriter
 
     with BagWriter(path, scan_topic=scan_topic, odom_topic=odom_topic, publish_tf=publish_tf) as writer:
         records: list[ScanRecord | OdomRecord] = [*odoms, *scans]

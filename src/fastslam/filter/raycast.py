@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .grid import GridMaps, scratch
+from fastslam.filter.grid import GridMaps, scratch
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.

@@ -1,10 +1,10 @@
 """Convert a CARMEN log into a ROS 1 bag for the offline SLAM.
 
-    python -m fastslam.carmen LOG --out BAG [--odom-noise LEVEL --seed N] [--max-range R] [--limit K]
+    python -m fastslam.carmen_to_bag LOG --out BAG [--odom-noise LEVEL --seed N] [--max-range R] [--limit K]
 
 Writes BAG (/scan, /odom, /tf, /tf_static), BAG.gt.txt (the log's poses, ``t x y
 theta``) and BAG.odom.txt (the odometry). The odometry re-integrates the logged
-motion with the noise model of :mod:`fastslam.io.odom_noise` scaled by LEVEL
+motion with the noise model of :mod:`fastslam.sim.odometry_noise` scaled by LEVEL
 (0 = the logged poses).
 """
 from __future__ import annotations
@@ -14,14 +14,14 @@ import sys
 
 import numpy as np
 
-from fastslam.io.bag import BagError
-from fastslam.io.carmen import CarmenError, read_log
+from fastslam.io.bag_reader import BagError
+from fastslam.io.carmen_log import CarmenError, read_log
 from fastslam.io.carmen_bag import convert
-from fastslam.trajectory_metrics import ate
+from fastslam.eval.trajectory import ate
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fastslam.carmen", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m fastslam.carmen_to_bag", description=__doc__.split("\n")[0])
     ap.add_argument("log", help="CARMEN log, plain or gzip")
     ap.add_argument("--out", required=True, help="bag to create (must not exist)")
     ap.add_argument("--odom-noise", type=float, default=0.0, metavar="LEVEL",

@@ -13,14 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from . import raycast
-from .config import SlamConfig
-from .geometry import circular_mean, compose, cos_sin, wrap_angle
-from .grid import GridMaps
-from .motion import odometry_std, sample_motion_assignment, sample_motion_odometry
-from .resample import low_variance_indices, neff, slot_parents
-from .scan import Beams, Scan, select_beams
-from .weights import assignment_log_weights, likelihood_log_weights, normalise_log
+from fastslam.filter import raycast
+from fastslam.config import SlamConfig
+from fastslam.geometry import circular_mean, compose, cos_sin, wrap_angle
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
+from fastslam.filter.resample import low_variance_indices, neff, slot_parents
+from fastslam.filter.scan import Beams, Scan, select_beams
+from fastslam.filter.weights import assignment_log_weights, likelihood_log_weights, normalise_log
 
 # Likelihood weights need no expected ranges, so the map update traces each beam only
 # about as far as it reaches, in this many groups of beams of similar length.
@@ -174,7 +174,7 @@ class FastSlam:
         return origins, p[:, 2, None] + beams.angles[None, :]
 
     def _propose(self, beams: Beams) -> int:
-        from .scanmatch import refine_poses  # improved mode only
+        from fastslam.match.matcher import refine_poses  # improved mode only
 
         prior = (self._predicted, self._motion_std) if self.cfg.match_prior == "motion" else None
         return int(refine_poses(self, beams, prior=prior).sum())
@@ -185,7 +185,7 @@ class FastSlam:
         weigh = bool(beams.hit.any())  # with no return to compare, weights stay as they are
         log_w = None
         if weigh and cfg.weight_model == "likelihood":
-            from .scanmatch import endpoint_distances, returns_subset
+            from fastslam.match.matcher import endpoint_distances, returns_subset
 
             sub = returns_subset(beams, cfg.match_beams)  # the matcher's end points
             dist = endpoint_distances(self.grid, self.poses, sub, max_dist=cfg.likelihood_max_dist)

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fastslam.io import mapfile
-from fastslam.io.mapfile import MapLoadError
+from fastslam.io import map_files as mapfile
+from fastslam.io.map_files import MapLoadError
 from fastslam.sim.world import World, WorldError
 
 def read_pgm(path: str | Path) -> tuple[NDArray[np.uint8], int]:

@@ -111,7 +111,7 @@ def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.in
         raise ValueError(f"occupancy must be (H, W), got shape {occ.shape}")
     pgm_path, yaml_path = _paths(path_stem_or_yaml)
     h, w = occ.shape
-    header = f"P5\n# CREATOR: fastslam.io.mapfile {resolution:.3f} m/pix\n{w} {h}\n255\n".encode("ascii")
+    header = f"P5\n# CREATOR: fastslam.io.map_files {resolution:.3f} m/pix\n{w} {h}\n255\n".encode("ascii")
     meta = {
         "image": pgm_path.name,       # relative, so the pair can be moved together
         "resolution": float(resolution),

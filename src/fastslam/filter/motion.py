@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .geometry import wrap_angle
+from fastslam.geometry import wrap_angle
 
 
 def odometry_step(prev_odom: NDArray, odom: NDArray) -> tuple[float, float]:

@@ -7,7 +7,7 @@ that step (seeded). The matcher sees the same prior as in the filter (centred on
 erring prediction, or the window prior round the sample). Prints the bias and spread of matched - reference in the robot
 frame, which the filter's chaotic end results cannot show.
 
-    python -m fastslam.bench_matcher [intel|office] [--config config/real.yaml]
+    python -m bench.matcher [intel|office] [--config config/real.yaml]
         [--limit 400] [--set key=value]...
 """
 from __future__ import annotations
@@ -19,20 +19,20 @@ from typing import Iterator
 
 import numpy as np
 
-from .config import SlamConfig, parse_override
-from .geometry import compose, relative
-from .motion import odometry_std
-from .scan import Scan, select_beams
-from .scanmatch import refine_poses
-from .slam import FastSlam
+from fastslam.config import SlamConfig, parse_override
+from fastslam.geometry import compose, relative
+from fastslam.filter.motion import odometry_std
+from fastslam.filter.scan import Scan, select_beams
+from fastslam.match.matcher import refine_poses
+from fastslam.filter.slam import FastSlam
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(reference pose, scan) of the Intel log's FLASER records."""
-    from .bench_accuracy import INTEL_LOG
-    from .io.carmen import read_log
+    from bench.accuracy import INTEL_LOG
+    from fastslam.io.carmen_log import read_log
 
     for rec in read_log(INTEL_LOG, limit=limit).scans:
         mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
@@ -43,9 +43,9 @@ def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 
 def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(true pose, scan) of the simulator's office route, perfect odometry."""
-    from .bench_accuracy import LDS01
-    from .simrun import run
-    from .trajectory_metrics import match_by_time
+    from bench.accuracy import LDS01
+    from fastslam.simrun import run
+    from fastslam.eval.trajectory import match_by_time
 
     cfg = SlamConfig.from_dict({"proposal": "odometry", "toggle_noise": 0, "particles": 1, **LDS01})
     sim = run("office", cfg, seed=0, sim={"odom_noise": False}, record=True)
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     overrides = dict(parse_override(s) for s in args.set)
     if args.data == "office":
-        from .bench_accuracy import LDS01
+        from bench.accuracy import LDS01
 
         overrides = {**LDS01, **overrides}
     cfg = SlamConfig.from_yaml(args.config, overrides)

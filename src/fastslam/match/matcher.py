@@ -41,12 +41,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .geometry import cholesky3, cos_sin, inv3, solve3, wrap_angle
-from .grid import GridMaps, scratch
-from .scan import Beams
+from fastslam.geometry import cholesky3, cos_sin, inv3, solve3, wrap_angle
+from fastslam.filter.grid import GridMaps, scratch
+from fastslam.filter.scan import Beams
 
 if TYPE_CHECKING:
-    from .slam import FastSlam
+    from fastslam.filter.slam import FastSlam
 
 POOL = 4               # coarse level: cells per side of a pooled cell
 FINE_ITERATIONS = 6    # hill-climbing steps (a step halves when no neighbour improves)

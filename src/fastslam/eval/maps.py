@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .trajectory_metrics import match_by_time
+from fastslam.eval.trajectory import match_by_time
 
 OCCUPIED = 65  # map_saver's occupied threshold, in OccupancyGrid percent
 

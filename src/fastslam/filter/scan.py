@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from .config import SlamConfig
-from .geometry import wrap_angle
+from fastslam.config import SlamConfig
+from fastslam.geometry import wrap_angle
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
 from fastslam.eval.trajectory import ate, rpe
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 # shared/ lies beside the repository (CI clones main next to it), /work/shared here
 INTEL_LOG = next((p for p in (ROOT.parent / "shared" / "data" / "intel-corrected.log.gz",
                               Path("/work/shared/data/intel-corrected.log.gz")) if p.is_file()),

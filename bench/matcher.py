@@ -20,13 +20,13 @@ from typing import Iterator
 import numpy as np
 
 from fastslam.config import SlamConfig, parse_override
-from fastslam.geometry import compose, relative
 from fastslam.filter.motion import odometry_std
 from fastslam.filter.scan import Scan, select_beams
-from fastslam.match.matcher import refine_poses
 from fastslam.filter.slam import FastSlam
+from fastslam.geometry import compose, relative
+from fastslam.match import MatchParams, match_poses
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
@@ -57,24 +57,24 @@ def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 
 def match_errors(cfg: SlamConfig, scans: Iterator[tuple[np.ndarray, Scan]], seed: int = 0) -> np.ndarray:
     """(K, 3) matched - reference (along, across [m], heading [rad]) of trusted matches."""
-    cfg = cfg.replace(particles=1, match_sigma_xy=0.0, match_sigma_theta=0.0, match_spread="fixed")
-    mapper = FastSlam(cfg.replace(proposal="odometry", toggle_noise=0))
+    # The map is written at the reference poses: one particle moved exactly by them.
+    mapper = FastSlam(cfg.replace(particles=1, proposal="odometry", motion_model="odometry", toggle_noise=0))
+    params = MatchParams.from_config(cfg)
     rng = np.random.default_rng(seed)
     alphas = (cfg.srr, cfg.srt, cfg.str, cfg.stt)
     out, last = [], None
     for pose, scan in scans:
-        if last is not None and not mapper._due(pose, scan.stamp):
+        if last is not None and not mapper.due(pose, scan.stamp):
             continue
         if last is not None:
             std = np.maximum(odometry_std(last, pose, alphas), 1e-9)
             predicted = compose(pose, rng.normal(0.0, 1.0, 3) * std)      # where odometry says
-            mapper.poses[:] = compose(predicted, rng.normal(0.0, 1.0, 3) * std)  # the particle's sample
+            sample = compose(predicted, rng.normal(0.0, 1.0, 3) * std)    # the particle's sample
             prior = (predicted[None], std) if cfg.match_prior == "motion" else None  # as FastSlam does
-            if refine_poses(mapper, select_beams(scan, cfg), prior=prior)[0]:
-                out.append(relative(pose, mapper.poses[0]))
-            mapper.poses[:] = last
+            match = match_poses(mapper.grid, sample[None], select_beams(scan, cfg), params, prior=prior)
+            if match.trusted[0]:
+                out.append(relative(pose, match.poses[0]))
         mapper.step(pose, scan)
-        mapper.poses[:] = pose  # the map is written at the reference pose
         last = pose
     return np.array(out).reshape(-1, 3)
 

@@ -106,7 +106,7 @@ def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> li
     from fastslam.sim.sim import SimConfig, Simulation
     from fastslam.sim.world import load_world
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[1]
     world = load_world(root / "worlds" / "office.yaml")
     loop = load_route(root / "worlds" / "office.route.yaml")
     route = np.concatenate([loop] * 20)

@@ -9,7 +9,7 @@ limits set the scale, so l_min..l_max always fit in -127..127.
 from __future__ import annotations
 
 import math
-import threading
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,19 +17,14 @@ from numpy.typing import NDArray
 LOGODDS_DTYPE = np.int8
 QMAX = 127
 
-_scratch = threading.local()
 
+class LogOddsSteps(NamedTuple):
+    """The map update's increments and clamps in a grid's int8 units."""
 
-def scratch(key: str, shape: tuple[int, ...], dtype: type | np.dtype) -> NDArray:
-    """A work array of this shape, contents undefined, reused by the next call with
-    the same key (per thread): a large temporary allocated afresh every scan costs a
-    page fault per 4 KiB page, which in a VM costs more than the arithmetic on it."""
-    arrays = _scratch.__dict__.setdefault("arrays", {})
-    size = math.prod(shape)
-    buf = arrays.get(key)
-    if buf is None or buf.dtype != dtype or buf.size < size:
-        buf = arrays[key] = np.empty(size + size // 4, dtype)  # headroom: sizes vary a little
-    return buf[:size].reshape(shape)
+    free: int   # added to a cell a beam crosses (< 0)
+    occ: int    # added to the cell a beam ends in (> 0)
+    lo: int     # clamps
+    hi: int
 
 
 class GridMaps:
@@ -54,6 +49,10 @@ class GridMaps:
         """A log-odds value in grid units, never rounded to zero."""
         q = int(np.clip(np.rint(value / self.scale), -QMAX, QMAX))
         return q if q != 0 else int(np.sign(value))
+
+    def steps(self, l_free: float, l_occ: float, l_min: float, l_max: float) -> LogOddsSteps:
+        """Log-odds increments and clamps in grid units."""
+        return LogOddsSteps(self.quantise(l_free), self.quantise(l_occ), self.quantise(l_min), self.quantise(l_max))
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -14,7 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from fastslam.filter.grid import GridMaps, scratch
+from fastslam.filter.grid import GridMaps, LogOddsSteps
+from fastslam.filter.scan import Beams
+from fastslam.filter.scratch import scratch
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
@@ -176,8 +178,7 @@ def expected_ranges(grid: GridMaps, rays: Rays, min_range: float = 0.0) -> NDArr
 
 
 def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
-                   hit_step: NDArray[np.int64], *, first_step: NDArray[np.int64],
-                   l_free: int, l_occ: int, l_min: int, l_max: int) -> None:
+                   hit_step: NDArray[np.int64], *, first_step: NDArray[np.int64], steps: LogOddsSteps) -> None:
     """Applies one scan to the traced particles' grids, each cell at most once.
 
     Args:
@@ -185,10 +186,10 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
         hit_step: (n, M) step of the cell the beam ended in, -1 for no hit; it becomes
             more occupied, and only occupied, even if another beam crossed it.
         first_step: (n, M) steps before it (the sensor's minimum range) are left alone.
-        l_free, l_occ, l_min, l_max: increments and clamps in the grid's int8 units.
+        steps: increments and clamps in the grid's int8 units.
     """
     free, hit = _cells_to_update(rays, free_until, hit_step, first_step)
-    _apply(grid, free, hit, l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max)
+    _apply(grid, free, hit, steps)
 
 
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
@@ -200,8 +201,8 @@ def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArra
     return free, hit[has_hit & (hit >= 0)]
 
 
-def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], *,
-           l_free: int, l_occ: int, l_min: int, l_max: int) -> None:
+def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], steps: LogOddsSteps) -> None:
+    l_free, l_occ, l_min, l_max = steps
     cells = grid.logodds.reshape(-1)
     lo, hi = np.iinfo(cells.dtype).min, np.iinfo(cells.dtype).max
     if l_free <= 0 <= l_occ and l_min <= l_max and lo <= l_min - l_free <= hi and lo <= l_max - l_occ <= hi:
@@ -227,12 +228,20 @@ def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], 
     cells[hit] = np.clip(before + l_occ, l_min, l_max)
 
 
-def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
-                     ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
-                     max_range: float, range_min: float, groups: int, free_step: int,
-                     l_units: dict[str, int]) -> None:
-    """The grid update of observe without expected ranges: beams are traced in groups
-    of similar length, each only as far as its longest beam reaches, not to max_range."""
+def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,
+                   steps: LogOddsSteps, *, max_range: float, groups: int, free_step: int = 1) -> None:
+    """The grid update of observe without expected ranges (faster): beams are traced in
+    groups of similar length, each only as far as its longest beam reaches, not to
+    max_range (the cells of a beam's line then depend on its group's length).
+
+    Args:
+        origins: (N, 2) beam origins; angles: (N, M) beam directions, map frame.
+        beams: the M beams (ranges, hits, the range each clears).
+        groups: number of groups of beams of similar length.
+        free_step: only every free_step-th beam (in angle) clears free space; the
+            others only mark the cell of their end point.
+    """
+    ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
     reach = np.where(hit, ranges, free_range)
     order = np.argsort(reach, kind="stable")
@@ -261,7 +270,7 @@ def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArr
             ok = (cell[..., 0] >= 0) & (cell[..., 0] < w_) & (cell[..., 1] >= 0) & (cell[..., 1] < h_)
             flat = ((np.arange(a, b)[:, None] * h_ + cell[..., 1]) * w_ + cell[..., 0])[ok]
             hit_cells.append(flat)
-        _apply(grid, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), **l_units)
+        _apply(grid, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), steps)
 
 
 def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
@@ -321,33 +330,21 @@ def _prefix_masks(k_max: int) -> NDArray[np.bool_]:
     return table
 
 
-def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
-            ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
-            max_range: float, range_min: float, expected: bool,
-            l_free: int, l_occ: int, l_min: int, l_max: int, trim_groups: int = 0,
-            free_step: int = 1) -> NDArray[np.float64] | None:
-    """Expected scan from each particle's map as it was, then the scan written into it.
+def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,
+            steps: LogOddsSteps, *, max_range: float, expected: bool) -> NDArray[np.float64] | None:
+    """Expected scan from each particle's map as it was, then the scan written into it,
+    every beam traced to max_range.
 
     Runs over particles in chunks so the (n, M, K) temporaries stay small and in cache.
 
     Args:
         origins: (N, 2) beam origins; angles: (N, M) beam directions, map frame.
-        ranges: (M,) measured ranges; hit: (M,) beams that end in an obstacle;
-        free_range: (M,) distance each beam clears, 0 for none [m].
+        beams: the M beams (ranges, hits, the range each clears, the sensor's minimum).
         expected: whether to compute the expected ranges.
-        trim_groups: without expected ranges, > 0 traces the beams in this many groups
-            of similar length, each group only as far as its longest beam (faster; the
-            cells of a beam's line then depend on its group's length).
-        free_step: with trim_groups, only every free_step-th beam clears free space;
-            the others only mark the cell of their end point.
     Returns:
         (N, M) expected ranges, or None.
     """
-    if trim_groups > 0 and not expected:
-        _observe_trimmed(grid, origins, angles, ranges, hit, free_range, max_range=max_range,
-                         range_min=range_min, groups=trim_groups, free_step=free_step,
-                         l_units=dict(l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max))
-        return None
+    ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
     k_guess = int(max_range / grid.resolution) + 2
     per_chunk = max(1, CHUNK_ELEMENTS // (m * k_guess))
@@ -360,6 +357,5 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
         hit_step = np.where(hit, rays.step_of_range(ranges), -1)
         until = np.where(hit, hit_step, rays.step_of_range(free_range) + 1)
         until = np.where(free_range > 0, until, 0)
-        update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min),
-                       l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max)
+        update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min), steps=steps)
     return out

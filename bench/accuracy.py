@@ -25,12 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from fastslam.config import SlamConfig
-from fastslam.geometry import relative
-from fastslam.io.carmen_log import read_log
-from fastslam.sim.odometry_noise import noisy_odometry
+from fastslam.eval.trajectory import ate, rpe
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
-from fastslam.eval.trajectory import ate, rpe
+from fastslam.io.carmen_log import read_log
+from fastslam.sim.odometry_noise import noisy_odometry
 
 ROOT = Path(__file__).resolve().parents[1]
 # shared/ lies beside the repository (CI clones main next to it), /work/shared here
@@ -52,9 +51,8 @@ def intel_run(cfg: SlamConfig, seed: int, *, level: float = 1.0, log_path: Path 
     done: list[int] = []  # the log's stamps go backwards in places: match by index, not time
     start = time.perf_counter()
     for i, (rec, pose) in enumerate(zip(log.scans, odom)):
-        mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
         scan = Scan.from_laser(rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment,
-                               0.0, rec.max_range, mount=mount, stamp=rec.t)
+                               0.0, rec.max_range, mount=rec.mount, stamp=rec.t)
         if slam.step(pose, scan).processed:
             done.append(i)
     wall = time.perf_counter() - start

@@ -35,17 +35,16 @@ def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     from fastslam.io.carmen_log import read_log
 
     for rec in read_log(INTEL_LOG, limit=limit).scans:
-        mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
         yield np.asarray(rec.robot_pose, dtype=float), Scan.from_laser(
             rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment, 0.0, rec.max_range,
-            mount=mount, stamp=rec.t)
+            mount=rec.mount, stamp=rec.t)
 
 
 def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(true pose, scan) of the simulator's office route, perfect odometry."""
     from bench.accuracy import LDS01
-    from fastslam.simrun import run
     from fastslam.eval.trajectory import match_by_time
+    from fastslam.simrun import run
 
     cfg = SlamConfig.from_dict({"proposal": "odometry", "toggle_noise": 0, "particles": 1, **LDS01})
     sim = run("office", cfg, seed=0, sim={"odom_noise": False}, record=True)
@@ -84,7 +83,8 @@ def summary(err: np.ndarray) -> str:
     mm = 1000.0
     return (f"{len(err)} matches: bias along {mm * err[:, 0].mean():+.1f} mm, across {mm * err[:, 1].mean():+.1f} mm, "
             f"heading {mm * err[:, 2].mean():+.2f} mrad; RMS along {mm * np.sqrt(np.mean(err[:, 0] ** 2)):.1f} mm, "
-            f"across {mm * np.sqrt(np.mean(err[:, 1] ** 2)):.1f} mm, heading {mm * np.sqrt(np.mean(err[:, 2] ** 2)):.1f} "
+            f"across {mm * np.sqrt(np.mean(err[:, 1] ** 2)):.1f} mm, "
+            f"heading {mm * np.sqrt(np.mean(err[:, 2] ** 2)):.1f} "
             f"mrad; median {mm * np.median(xy):.1f} mm, > 10 cm {100 * np.mean(xy > 0.1):.1f} %")
 
 

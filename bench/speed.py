@@ -13,32 +13,32 @@ and time per update sampled every 5 minutes of simulated time.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from fastslam.config import SlamConfig
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
+from fastslam.sim.lidar import cast_rays
+from fastslam.sim.world import World
+from fastslam.sim.world_loader import load_world
 
 
-def room_ranges(pose: np.ndarray, angles: np.ndarray, half: float = 2.5) -> np.ndarray:
-    """Analytic ranges from pose (3,) inside a square room of half-width `half`, with a pillar."""
-    a = pose[2] + angles
-    c, s = np.cos(a), np.sin(a)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tx = np.where(c > 0, (half - pose[0]) / c, np.where(c < 0, (-half - pose[0]) / c, np.inf))
-        ty = np.where(s > 0, (half - pose[1]) / s, np.where(s < 0, (-half - pose[1]) / s, np.inf))
-        # pillar of radius 0.3 at (1, 1)
-        px, py = 1.0 - pose[0], 1.0 - pose[1]
-        b = px * c + py * s
-        disc = b * b - (px * px + py * py - 0.09)
-        tp = np.where((disc >= 0) & (b > 0), b - np.sqrt(np.maximum(disc, 0)), np.inf)
-    return np.minimum(np.minimum(tx, ty), tp)
+def room_ranges(pose: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Exact ranges from pose (3,) in worlds/pillar_room.yaml (the simulator's lidar)."""
+    return cast_rays(_pillar_room(), pose, angles)
+
+
+@functools.lru_cache(maxsize=1)
+def _pillar_room() -> World:
+    return load_world(Path(__file__).resolve().parents[1] / "worlds" / "pillar_room.yaml")
 
 
 def speed_case(particles: int, beams: int, size: float, steps: int = 25) -> dict:
@@ -104,7 +104,7 @@ def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> li
 
     from fastslam.sim.route import load_route
     from fastslam.sim.sim import SimConfig, Simulation
-    from fastslam.sim.world import load_world
+    from fastslam.sim.world_loader import load_world
 
     root = Path(__file__).resolve().parents[1]
     world = load_world(root / "worlds" / "office.yaml")

@@ -10,10 +10,10 @@ from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
 from sensor_msgs.msg import LaserScan
 
 from fastslam.filter.frontend import Dropped as BadMessage  # a message the node drops, str() says why
-from fastslam.geometry import yaw_from_quaternion
 from fastslam.filter.grid import GridMaps
-from fastslam.transforms import mount_from_matrix, transform_matrix
 from fastslam.filter.scan import Scan, laser_problem
+from fastslam.geometry import yaw_from_quaternion
+from fastslam.transforms import mount_from_matrix, transform_matrix
 
 
 def quaternion_from_yaw(yaw: float) -> Quaternion:

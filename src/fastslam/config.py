@@ -36,7 +36,8 @@ class SlamConfig:
     map_width: float = _num(10.0, 0.5, 2000.0, "initial map extent along x [m]")
     map_height: float = _num(10.0, 0.5, 2000.0, "initial map extent along y [m]")
     map_grow: bool = field(default=True, metadata={"doc": "grow the grid when the robot nears its edge"})
-    map_grow_fraction: float = _num(0.5, 0.0, 10.0, "a side of the grid that grows adds at least this share of its size")
+    map_grow_fraction: float = _num(0.5, 0.0, 10.0,
+                                    "a side of the grid that grows adds at least this share of its size")
     init_sigma_xy: float = _num(0.0, 0.0, 10.0, "spread of the initial particle positions [m]")
     init_sigma_theta: float = _num(0.0, 0.0, math.pi, "spread of the initial headings [rad]")
     # Motion (assignment 3.2)
@@ -59,9 +60,11 @@ class SlamConfig:
     fov_min: float = _num(-180.0, -180.0, 180.0, "first beam angle used, robot frame [deg]")
     fov_max: float = _num(180.0, -180.0, 180.0, "last beam angle used, robot frame [deg]")
     beam_step: int = _num(1, 1, 10000, "use every k-th beam")
-    free_beam_step: int = _num(1, 1, 10000, "likelihood mode: clear free space along every k-th used beam only (all mark their end cells)")
+    free_beam_step: int = _num(1, 1, 10000, "likelihood mode: clear free space along every k-th used beam only "
+                                            "(all mark their end cells)")
     max_range: float = _num(3.5, 0.1, 200.0, "ranges are used up to this distance [m]")
-    no_return_range: float = _num(3.5, 0.0, 200.0, "a beam with no return clears free space this far; 0 = not at all [m]")
+    no_return_range: float = _num(3.5, 0.0, 200.0,
+                                  "a beam with no return clears free space this far; 0 = not at all [m]")
     # Weights (assignment 3.4) and resampling (3.5)
     weight_model: str = _choice("assignment", ("assignment", "likelihood"),
                                 "assignment: 1/(||d-z||+1); likelihood: endpoint model in log-weights")
@@ -72,7 +75,8 @@ class SlamConfig:
     # Proposal (improved mode)
     proposal: str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
     match_min_score: float = _num(0.5, 0.0, 1.0, "scan-match score (fraction of beams on the map) needed to trust it")
-    match_min_known: int = _num(100, 0, 10**9, "occupied 4x4-cell blocks a particle's map needs within scan reach before matching")
+    match_min_known: int = _num(100, 0, 10**9,
+                                "occupied 4x4-cell blocks a particle's map needs within scan reach before matching")
     match_beams: int = _num(60, 4, 10000, "scan-match with at most this many returns, evenly spread")
     match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")

@@ -12,8 +12,8 @@ import argparse
 import json
 import sys
 
-from fastslam.io.trajectory_files import TrajectoryError, read_trajectory
 from fastslam.eval.trajectory import TrajectoryScores, score
+from fastslam.io.trajectory_files import TrajectoryError, read_trajectory
 
 
 def format_table(s: TrajectoryScores) -> str:

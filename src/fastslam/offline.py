@@ -23,13 +23,14 @@ from typing import Any
 import numpy as np
 
 from fastslam.config import ConfigError, SlamConfig, parse_override
-from fastslam.filter.frontend import Dropped, Frontend, drop_key
-from fastslam.io.bag_reader import BagData, BagError, OdomRecord, read_bag
-from fastslam.io.map_files import save_map
 from fastslam.eval.render import render_map, write_png
-from fastslam.io.trajectory_files import write_trajectory
+from fastslam.filter.frontend import Dropped, Frontend, drop_key
 from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.slam import FastSlam
+from fastslam.io.bag_reader import BagData, read_bag
+from fastslam.io.map_files import save_map
+from fastslam.io.records import BagError, OdomRecord
+from fastslam.io.trajectory_files import write_trajectory
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "slam.yaml"
 

@@ -14,13 +14,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from fastslam.config import SlamConfig
-from fastslam.geometry import relative
 from fastslam.eval.maps import run_quality, trajectory_errors
 from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
+from fastslam.geometry import relative
 from fastslam.sim.route import load_route
 from fastslam.sim.sim import SimConfig, Simulation
-from fastslam.sim.world import World, load_world
-from fastslam.filter.slam import FastSlam
+from fastslam.sim.world import World
+from fastslam.sim.world_loader import load_world
 
 WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 
@@ -63,7 +64,7 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | None = None, sim: Mapp
         seed: the simulator's noise seed (the filter has its own, in slam_cfg).
         record: keep every scan and odometry message, to write a bag from.
     """
-    from fastslam.io.bag_reader import OdomRecord, ScanRecord
+    from fastslam.io.records import OdomRecord, ScanRecord
 
     w = load_world(world_path(world))
     route_file = Path(route) if route else WORLDS / f"{Path(world).stem}.route.yaml"

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from fastslam import carmen_to_bag as carmen_cli
+from fastslam.carmen_to_bag import convert, reference_path
+from fastslam.eval.trajectory import ate
 from fastslam.geometry import wrap_angle
 from fastslam.io.bag_reader import read_bag
 from fastslam.io.carmen_log import read_log
-from fastslam.io.carmen_bag import convert, reference_path
 from fastslam.io.trajectory_files import read_trajectory
-from fastslam.eval.trajectory import ate
 
 pytest.importorskip("rosbags")
 

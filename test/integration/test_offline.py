@@ -5,9 +5,11 @@ import numpy as np
 
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
-from fastslam.io.bag_reader import StaticTransform, read_bag, write_bag
+from fastslam.io.bag_reader import read_bag
+from fastslam.io.bag_writer import write_bag
 from fastslam.io.map_files import load_map
 from fastslam.io.trajectory_files import read_trajectory
+from fastslam.transforms import StaticTransform
 
 
 def test_bag_replay_equals_the_direct_run(tmp_path):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from fastslam import evaluate
-from fastslam.io.trajectory_files import TrajectoryError, read_trajectory, write_trajectory
 from fastslam.eval.trajectory import align_2d, apply_alignment, ate, match_by_time, rpe, score
+from fastslam.io.trajectory_files import TrajectoryError, read_trajectory, write_trajectory
 
 
 def loop(rng: np.random.Generator, n: int = 100) -> np.ndarray:

@@ -7,13 +7,13 @@ import pytest
 
 from bench.speed import room_ranges
 from fastslam.config import SlamConfig
-from fastslam.geometry import wrap_angle
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.motion import sample_motion_odometry
 from fastslam.filter.resample import neff
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
 from fastslam.filter.weights import likelihood_log_weights, normalise_log
+from fastslam.geometry import wrap_angle
 
 ANGLES = np.radians(np.arange(0.0, 360.0, 4.0))
 

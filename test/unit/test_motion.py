@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from fastslam.geometry import circular_mean, compose, inverse, relative, wrap_angle
 from fastslam.filter.motion import odometry_step, sample_motion_assignment, sample_motion_odometry
+from fastslam.geometry import circular_mean, compose, inverse, relative, wrap_angle
 
 ZERO = np.zeros(3)
 

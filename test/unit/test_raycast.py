@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from fastslam.filter import raycast
-from fastslam.filter.grid import LogOddsSteps, GridMaps, logodds_to_occupancy
+from fastslam.filter.grid import GridMaps, LogOddsSteps, logodds_to_occupancy
 
 RES = 0.1
 
@@ -93,7 +93,8 @@ def test_expected_ranges_in_a_square_room_match_geometry_within_one_cell():
     grid = GridMaps(2, (60, 60), RES, (-3.0, -3.0))
     centres = grid.cell_to_world(np.stack(np.meshgrid(np.arange(60), np.arange(60)), -1))
     wall = (np.abs(centres[..., 0]) > half) | (np.abs(centres[..., 1]) > half)
-    grid.logodds[:] = np.where(wall & (np.maximum(np.abs(centres[..., 0]), np.abs(centres[..., 1])) < half + RES), 50, -10)
+    near = np.maximum(np.abs(centres[..., 0]), np.abs(centres[..., 1])) < half + RES
+    grid.logodds[:] = np.where(wall & near, 50, -10)
     angles = np.radians(np.arange(0, 360, 3.0))
     origins = np.array([[0.02, 0.03], [0.4, -0.3]])
     rays = raycast.trace(grid, origins, np.tile(angles, (2, 1)), 3.0)

@@ -4,15 +4,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fastslam.match import MatchParams, match_poses
-from fastslam.match.refine import icp, surface_normals
-from fastslam.match.search import pick, pool_occupied
 from bench.speed import room_ranges
 from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams, spread_returns
-from fastslam.filter.weights import endpoint_distances
 from fastslam.filter.slam import FastSlam
+from fastslam.filter.weights import endpoint_distances
+from fastslam.match import MatchParams, match_poses
+from fastslam.match.refine import icp, surface_normals
+from fastslam.match.search import pick, pool_occupied
 
 ANGLES = np.radians(np.arange(360.0))
 

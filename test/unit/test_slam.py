@@ -3,9 +3,9 @@ import pytest
 
 from bench.speed import room_ranges
 from fastslam.config import SlamConfig
-from fastslam.geometry import compose, relative
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
+from fastslam.geometry import compose, relative
 
 ANGLES = np.radians(np.arange(360.0))
 

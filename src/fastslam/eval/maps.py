@@ -5,8 +5,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fastslam.eval.trajectory import match_by_time
-
-OCCUPIED = 65  # map_saver's occupied threshold, in OccupancyGrid percent
+from fastslam.geometry import inverse, transform_points
+from fastslam.io.map_files import OCCUPIED_MIN as OCCUPIED  # map_saver's occupied threshold [%]
 
 
 def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -19,9 +19,8 @@ def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64])
 
 def in_frame_of(pose: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.float64]:
     """(P, 2) world points seen from pose (3,): the map frame of a run that started there."""
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    d = np.asarray(points, dtype=float) - pose[:2]
-    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+    x, y = transform_points(inverse(pose), np.asarray(points, dtype=float).reshape(-1, 2))
+    return np.stack([x, y], axis=1)
 
 
 def nearest_distance(points: NDArray[np.float64], targets: NDArray[np.float64],

@@ -8,7 +8,6 @@ unusable scans are dropped with a reason.
 from __future__ import annotations
 
 import re
-
 from dataclasses import dataclass, field
 
 import numpy as np

@@ -1,8 +1,10 @@
 """Motion update of all particles at once (assignment 3.2, and a robot-frame option)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import wrap_angle
 
@@ -47,9 +49,11 @@ def _rot_trans_rot(prev_odom: NDArray, odom: NDArray) -> tuple[float, float, flo
     return rot1, trans, rot2
 
 
-def _step_sigmas(rot1: float, trans: float, rot2: float, alphas: tuple[float, float, float, float]
-                 ) -> tuple[float, float, float]:
-    """Std-devs of rot1, trans, rot2 (gmapping's srr, srt, str, stt)."""
+def step_sigmas(rot1: ArrayLike, trans: ArrayLike, rot2: ArrayLike, alphas: tuple[float, float, float, float]
+                ) -> tuple[Any, Any, Any]:
+    """Std-devs of rot1, trans, rot2 (floats or arrays alike) under the odometry motion
+    model with alphas = (srr, srt, str, stt), gmapping's: translation noise from
+    translation and from rotation, rotation noise from translation and from rotation."""
     srr, srt, s_rt, stt = alphas
     return (stt * abs(rot1) + s_rt * abs(trans), srr * abs(trans) + srt * (abs(rot1) + abs(rot2)),
             stt * abs(rot2) + s_rt * abs(trans))
@@ -60,7 +64,7 @@ def odometry_std(prev_odom: NDArray, odom: NDArray, alphas: tuple[float, float, 
     """(3,) std-devs of sample_motion_odometry's end pose for this step: along the
     direction of travel, across it [m], and of the heading [rad] (first order)."""
     rot1, trans, rot2 = _rot_trans_rot(prev_odom, odom)
-    s_rot1, s_trans, s_rot2 = _step_sigmas(rot1, trans, rot2, alphas)
+    s_rot1, s_trans, s_rot2 = step_sigmas(rot1, trans, rot2, alphas)
     return np.array([s_trans, abs(trans) * s_rot1, float(np.hypot(s_rot1, s_rot2))])
 
 
@@ -78,7 +82,7 @@ def sample_motion_odometry(poses: NDArray[np.float64], prev_odom: NDArray, odom:
     tr = np.full(n, trans)
     r2 = np.full(n, rot2)
     if noise:
-        s_rot1, s_trans, s_rot2 = _step_sigmas(rot1, trans, rot2, alphas)
+        s_rot1, s_trans, s_rot2 = step_sigmas(rot1, trans, rot2, alphas)
         r1 += rng.normal(0, 1, n) * s_rot1
         tr += rng.normal(0, 1, n) * s_trans
         r2 += rng.normal(0, 1, n) * s_rot2

@@ -20,8 +20,7 @@ from fastslam.filter.history import History
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
 from fastslam.filter.resample import low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, returns_subset, select_beams
-from fastslam.filter.weights import (assignment_log_weights, endpoint_distances, likelihood_log_weights,
-                                     normalise_log)
+from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses
 

@@ -89,7 +89,8 @@ def inv3(m: NDArray[np.float64]) -> NDArray[np.float64]:
 def solve3(m: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
     """(..., 3) solutions x of m (..., 3, 3) x = v (..., 3)."""
     inv = inv3(m)
-    return inv[..., 0] * v[..., 0, None] + inv[..., 1] * v[..., 1, None] + inv[..., 2] * v[..., 2, None]
+    return np.asarray(inv[..., 0] * v[..., 0, None] + inv[..., 1] * v[..., 1, None] + inv[..., 2] * v[..., 2, None],
+                      dtype=np.float64)
 
 
 def cholesky3(m: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -12,12 +12,14 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+from numpy.typing import NDArray
 
 from fastslam.config import SlamConfig
 from fastslam.eval.maps import run_quality, trajectory_errors
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
 from fastslam.geometry import relative
+from fastslam.io.records import OdomRecord, ScanRecord
 from fastslam.sim.route import load_route
 from fastslam.sim.sim import SimConfig, Simulation
 from fastslam.sim.world import World
@@ -30,13 +32,13 @@ WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 class SimRun:
     slam: FastSlam
     world: World
-    truth: np.ndarray       # (T, 4) t, x, y, theta of every odometry tick, map frame
-    odom: np.ndarray        # (T, 4) the odometry the filter saw, odom (= map) frame
+    truth: NDArray[np.float64]  # (T, 4) t, x, y, theta of every odometry tick, map frame
+    odom: NDArray[np.float64]   # (T, 4) the odometry the filter saw, odom (= map) frame
     seconds: float          # wall time spent in FastSlam.step
     updates: int
     mount: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the laser in the base frame (x, y, yaw)
-    scans: list = field(default_factory=list)   # ScanRecord of every scan, when recorded
-    odoms: list = field(default_factory=list)   # OdomRecord of every odometry tick, when recorded
+    scans: list[ScanRecord] = field(default_factory=list)   # every scan, when recorded
+    odoms: list[OdomRecord] = field(default_factory=list)   # every odometry tick, when recorded
 
     def metrics(self) -> dict[str, Any]:
         grid = self.slam.grid
@@ -64,8 +66,6 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | None = None, sim: Mapp
         seed: the simulator's noise seed (the filter has its own, in slam_cfg).
         record: keep every scan and odometry message, to write a bag from.
     """
-    from fastslam.io.records import OdomRecord, ScanRecord
-
     w = load_world(world_path(world))
     route_file = Path(route) if route else WORLDS / f"{Path(world).stem}.route.yaml"
     sim_cfg = SimConfig.from_dict({**(sim or {}), "seed": seed})
@@ -82,7 +82,8 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | None = None, sim: Mapp
             truth.append((tick.t, *relative(w.spawn, simulation.robot.pose)))
             odom.append((tick.t, *simulation.odom.pose))
             if record:
-                odoms.append(OdomRecord(tick.t, *simulation.odom.pose, child_frame_id="base_footprint"))
+                x, y, yaw = simulation.odom.pose
+                odoms.append(OdomRecord(tick.t, x, y, yaw, child_frame_id="base_footprint"))
         if tick.scan is not None:
             ranges = tick.scan.astype(np.float32)  # as a LaserScan message carries them
             if record:

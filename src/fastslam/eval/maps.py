@@ -1,12 +1,17 @@
 """Quality of a SLAM result against ground truth: trajectory error and map agreement."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import NDArray
 
 from fastslam.eval.trajectory import match_by_time
 from fastslam.geometry import inverse, transform_points
 from fastslam.io.map_files import OCCUPIED_MIN as OCCUPIED  # map_saver's occupied threshold [%]
+
+if TYPE_CHECKING:
+    from fastslam.sim.world import World
 
 
 def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -82,7 +87,7 @@ def map_quality(occupancy: NDArray[np.int8], resolution: float, origin: tuple[fl
     }
 
 
-def run_quality(world, estimate: NDArray[np.float64], truth: NDArray[np.float64], occupancy: NDArray[np.int8],
+def run_quality(world: World, estimate: NDArray[np.float64], truth: NDArray[np.float64], occupancy: NDArray[np.int8],
                 resolution: float, origin: tuple[float, float]) -> dict[str, float]:
     """Trajectory error and map agreement of a simulated run, all in the run's map frame.
 

@@ -90,7 +90,7 @@ def draw_polyline(img: NDArray[np.uint8], pixels_xy: ArrayLike, color: tuple[int
     img[rows[inside], cols[inside]] = color
 
 
-def world_to_pixels(xy: ArrayLike, shape: tuple[int, int], resolution: float,
+def world_to_pixels(xy: ArrayLike, shape: tuple[int, ...], resolution: float,
                     origin: tuple[float, float, float], scale: int) -> NDArray[np.float64]:
     """(T, 2) map-frame points -> (T, 2) (column, row) coords in a picture of grid ``shape``."""
     pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)

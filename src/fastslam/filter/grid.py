@@ -9,10 +9,10 @@ limits set the scale, so l_min..l_max always fit in -127..127.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 LOGODDS_DTYPE = np.int8
 QMAX = 127
@@ -65,11 +65,11 @@ class GridMaps:
         x0, y0 = self.origin
         return x0, y0, x0 + w * self.resolution, y0 + h * self.resolution
 
-    def world_to_cell(self, xy: NDArray) -> NDArray[np.int64]:
+    def world_to_cell(self, xy: ArrayLike) -> NDArray[np.int64]:
         """(..., 2) world points -> (..., 2) integer (ix, iy), possibly outside the grid."""
         return np.floor((np.asarray(xy) - self.origin) / self.resolution).astype(np.int64)
 
-    def cell_to_world(self, ixy: NDArray) -> NDArray[np.float64]:
+    def cell_to_world(self, ixy: ArrayLike) -> NDArray[np.float64]:
         """(..., 2) integer (ix, iy) -> (..., 2) world coordinates of the cell centres."""
         return self.origin + (np.asarray(ixy) + 0.5) * self.resolution
 
@@ -128,7 +128,7 @@ class GridMaps:
         return np.count_nonzero(self.logodds.reshape(len(self.logodds), -1), axis=1)
 
 
-def logodds_to_occupancy(logodds: NDArray, scale: float = 1.0) -> NDArray[np.int8]:
+def logodds_to_occupancy(logodds: NDArray[np.integer[Any]], scale: float = 1.0) -> NDArray[np.int8]:
     """Log-odds (any shape, times scale) -> int8 occupancy: -1 unknown (exactly 0), else 0..100."""
     p = 1.0 / (1.0 + np.exp(-logodds.astype(np.float64) * scale))
     occ = np.rint(p * 100.0).astype(np.int8)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,16 +36,16 @@ class Rays:
     inside: every traced cell lies in the grid, so no -1 needs checking.
     """
 
-    flat: NDArray[np.integer]
+    flat: NDArray[np.integer[Any]]
     steps: NDArray[np.int64]
     max_range: float
     inside: bool
 
-    def step_of_range(self, ranges: NDArray) -> NDArray[np.int64]:
+    def step_of_range(self, ranges: NDArray[np.float64]) -> NDArray[np.int64]:
         """(n, M) step at which a range (M,) or (n, M) ends, clipped to the beam."""
         return _step_of_range(self.steps, self.max_range, ranges)
 
-    def range_of_step(self, k: NDArray) -> NDArray[np.float64]:
+    def range_of_step(self, k: NDArray[np.float64]) -> NDArray[np.float64]:
         """(n, M) distance from the origin of step k (n, M) of each beam [m]."""
         return np.minimum(k / np.maximum(self.steps, 1), 1.0) * self.max_range
 
@@ -53,7 +54,7 @@ class Rays:
         return np.ceil(distance / self.max_range * self.steps).astype(np.int64)
 
 
-def _step_of_range(steps: NDArray[np.int64], max_range: float, ranges: NDArray) -> NDArray[np.int64]:
+def _step_of_range(steps: NDArray[np.int64], max_range: float, ranges: NDArray[np.float64]) -> NDArray[np.int64]:
     k = np.rint(np.asarray(ranges) / max_range * steps)
     return np.minimum(k, steps).astype(np.int64)
 
@@ -66,7 +67,7 @@ class _Lines:
     start: NDArray[np.int64]      # (n, 2) cell of each origin
     steps: NDArray[np.int64]      # (n, M)
     slope: NDArray[np.float32]    # (n, M, 2)
-    base: NDArray[np.integer]     # (n,) flat index of each start cell
+    base: NDArray[np.integer[Any]]     # (n,) flat index of each start cell
     shape: tuple[int, int]        # (H, W) of the grid
 
     @property
@@ -106,7 +107,7 @@ def _lines(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.floa
     np.divide(dx, div, out=slope[..., 0], casting="unsafe")  # float64 quotient, then float32
     np.divide(dy, div, out=slope[..., 1], casting="unsafe")
     index_type = np.int32 if grid.logodds.size < np.iinfo(np.int32).max else np.int64
-    base = (((first + np.arange(n_p)) * h + start[:, 1]) * w + start[:, 0]).astype(index_type)
+    base: NDArray[np.integer[Any]] = (((first + np.arange(n_p)) * h + start[:, 1]) * w + start[:, 0]).astype(index_type)
     return _Lines(start=start, steps=steps, slope=slope, base=base, shape=(h, w))
 
 
@@ -115,7 +116,7 @@ def _to_cell(v: NDArray[np.float64], origin: float, resolution: float) -> NDArra
     return np.floor((v - origin) / resolution).astype(np.int64)
 
 
-def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer]) -> NDArray[np.integer]:
+def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer[Any]]) -> NDArray[np.integer[Any]]:
     """out (n, M, K): flat index of every step of lines that lie inside the grid."""
     k = np.arange(out.shape[2], dtype=np.float32)
     fx = np.multiply(lines.slope[..., 0, None], k, out=scratch("raycast_fx", out.shape, np.float32))
@@ -125,7 +126,7 @@ def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer]) -> NDArray[np.
     fy *= np.float32(w)
     fx += fy  # exact: |value| < 2**24
     np.copyto(out, fx, casting="unsafe")
-    out += lines.base[:, None, None]
+    np.add(out, lines.base[:, None, None], out=out)
     return out
 
 
@@ -193,7 +194,7 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
 
 
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
-                     first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer], NDArray[np.integer]]:
+                     first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer[Any]], NDArray[np.integer[Any]]]:
     """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
     free = _free_of(rays.flat, free_until, first_step, valid=None if rays.inside else rays.flat >= 0)
     has_hit = hit_step >= 0
@@ -201,7 +202,7 @@ def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArra
     return free, hit[has_hit & (hit >= 0)]
 
 
-def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], steps: LogOddsSteps) -> None:
+def _apply(grid: GridMaps, free: NDArray[np.integer[Any]], hit: NDArray[np.integer[Any]], steps: LogOddsSteps) -> None:
     l_free, l_occ, l_min, l_max = steps
     cells = grid.logodds.reshape(-1)
     lo, hi = np.iinfo(cells.dtype).min, np.iinfo(cells.dtype).max
@@ -276,7 +277,7 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
 def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
                  parts: list[NDArray[np.intp]], reach: NDArray[np.float64], ranges: NDArray[np.float64],
                  hit: NDArray[np.bool_], free_range: NDArray[np.float64], *, max_range: float,
-                 range_min: float, first: int) -> tuple[NDArray[np.intp], list[NDArray[np.integer]]]:
+                 range_min: float, first: int) -> tuple[NDArray[np.intp], list[NDArray[np.integer[Any]]]]:
     """The cells to free (one intp array, repeats allowed) and the hit cells (per group)
     of the beam groups `parts` for particles first .. first + n - 1."""
     # All groups at once, each beam with its group's length: the same values as group
@@ -308,8 +309,8 @@ def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[n
     return np.concatenate(free, out=out), hit_cells
 
 
-def _free_of(flat: NDArray[np.integer], until: NDArray[np.int64], first_step: NDArray[np.int64],
-             valid: NDArray[np.bool_] | None = None) -> NDArray[np.integer]:
+def _free_of(flat: NDArray[np.integer[Any]], until: NDArray[np.int64], first_step: NDArray[np.int64],
+             valid: NDArray[np.bool_] | None = None) -> NDArray[np.integer[Any]]:
     """The cells of steps first_step <= k < until of flat (n, M, K), where valid."""
     # Row u of the table is the mask k < u: one row copied per beam, cheaper than a
     # comparison broadcast over every step ("clip" clips u to 0 .. K).

@@ -5,7 +5,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from fastslam.config import SlamConfig
 from fastslam.geometry import wrap_angle
@@ -30,7 +30,7 @@ class Scan:
     stamp: float = 0.0
 
     @classmethod
-    def from_laser(cls, ranges: NDArray, angle_min: float, angle_increment: float,
+    def from_laser(cls, ranges: ArrayLike, angle_min: float, angle_increment: float,
                    range_min: float, range_max: float, *, mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                    upside_down: bool = False, stamp: float = 0.0) -> Scan:
         """From LaserScan fields; mount = (x, y, yaw) of the laser in the base frame.

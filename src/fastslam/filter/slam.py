@@ -75,7 +75,7 @@ class FastSlam:
         self._stamp = -np.inf
         self.history = History()
 
-    def rebase_odometry(self, odom: NDArray) -> None:
+    def rebase_odometry(self, odom: NDArray[np.float64]) -> None:
         """Takes odom as the new reference without moving the particles (after a jump)."""
         if self._odom is not None:
             self._odom = np.asarray(odom, dtype=np.float64)
@@ -85,7 +85,7 @@ class FastSlam:
         """(N,) normalised weights."""
         return normalise_log(self.log_w)
 
-    def step(self, odom: NDArray, scan: Scan) -> StepInfo:
+    def step(self, odom: NDArray[np.float64], scan: Scan) -> StepInfo:
         """One FastSLAM update with the odometry pose (3,) at the scan's time."""
         odom = np.asarray(odom, dtype=np.float64)
         first = self._odom is None
@@ -113,12 +113,12 @@ class FastSlam:
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched)
 
     # -- the named steps -------------------------------------------------------------
-    def _anchor(self, odom: NDArray) -> None:
+    def _anchor(self, odom: NDArray[np.float64]) -> None:
         """First scan: the map frame is the odometry frame, the grid centred on the robot."""
         self.poses = compose(odom, self.poses)
         self.grid.origin = self.grid.origin + odom[:2]
 
-    def due(self, odom: NDArray, stamp: float) -> bool:
+    def due(self, odom: NDArray[np.float64], stamp: float) -> bool:
         """Gating: whether a scan at odometry pose odom (3,) and this stamp is processed:
         after enough travel, turn or time since the last processed one (all zero: every scan)."""
         cfg = self.cfg
@@ -131,7 +131,7 @@ class FastSlam:
         waited = cfg.temporal_update >= 0 and stamp - self._stamp >= cfg.temporal_update
         return moved >= cfg.linear_update or turned >= cfg.angular_update or waited
 
-    def _move(self, odom: NDArray) -> None:
+    def _move(self, odom: NDArray[np.float64]) -> None:
         cfg = self.cfg
         assert self._odom is not None
         if cfg.proposal == "scan_match" and cfg.match_prior == "motion":
@@ -142,9 +142,10 @@ class FastSlam:
                                 else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
         self._apply_motion(self.poses, odom, noise=bool(cfg.toggle_noise))
 
-    def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray, noise: bool) -> None:
+    def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray[np.float64], noise: bool) -> None:
         """Moves poses (N, 3) in place by the configured motion model, sampled or not."""
         cfg = self.cfg
+        assert self._odom is not None
         if cfg.motion_model == "assignment":
             sigmas = cfg.motion_sigmas if noise else np.zeros(3)  # zeros: no random draw
             sample_motion_assignment(poses, self._odom, odom, sigmas, self.rng)

@@ -94,8 +94,9 @@ class Lidar:
 
     def sensor_pose(self, base_pose: ArrayLike) -> Array:
         """World pose (3,) of the sensor for a robot base pose (3,)."""
-        sensor = compose(base_pose, self.mount)
-        sensor[2] = float(base_pose[2]) + self.mount[2]  # unwrapped, as the beams' angles are
+        base = np.asarray(base_pose, dtype=float)
+        sensor = compose(base, self.mount)
+        sensor[2] = base[2] + self.mount[2]  # unwrapped, as the beams' angles are
         return sensor
 
     def cast(self, pose: ArrayLike, angles: ArrayLike, range_min: float, range_max: float,

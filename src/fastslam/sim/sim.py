@@ -32,7 +32,7 @@ class SimConfig:
     world: str = field(default="turtlebot3_world", metadata={"doc": "world name in worlds/ or a path"})
     route: str = field(default="", metadata={"doc": "waypoint file or inline YAML; empty = drive by cmd_vel"})
     worlds_dir: str = field(default="", metadata={"doc": "where world names are looked up; empty = the package's"})
-    spawn: list = field(default_factory=list, metadata={"doc": "[x, y, yaw_deg]; empty = the world's"})
+    spawn: list[float] = field(default_factory=list, metadata={"doc": "[x, y, yaw_deg]; empty = the world's"})
     seed: int = _num(0, 0, 2**32 - 1, "RNG seed for laser and odometry noise")
     speed: float = _num(1.0, 0.01, 1000.0, "sim time per wall time (only with use_sim_time)")
     physics_rate: float = _num(60.0, 1.0, 2000.0, "physics ticks per second of sim time [Hz]")

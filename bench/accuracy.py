@@ -17,13 +17,13 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from bench.common import data_path, in_own_process
 from fastslam.config import SlamConfig
 from fastslam.eval.trajectory import ate, rpe
 from fastslam.filter.scan import Scan
@@ -33,9 +33,7 @@ from fastslam.sim.odometry_noise import noisy_odometry
 
 ROOT = Path(__file__).resolve().parents[1]
 # shared/ lies beside the repository (CI clones main next to it), /work/shared here
-INTEL_LOG = next((p for p in (ROOT.parent / "shared" / "data" / "intel-corrected.log.gz",
-                              Path("/work/shared/data/intel-corrected.log.gz")) if p.is_file()),
-                 ROOT.parent / "shared" / "data" / "intel-corrected.log.gz")
+INTEL_LOG = data_path("intel-corrected.log.gz")
 CONFIGS = {"improved": ROOT / "config" / "real.yaml", "assignment": ROOT / "config" / "slam.yaml"}
 PARTICLES = {"improved": 30, "assignment": None}  # None: as the file says
 
@@ -85,13 +83,6 @@ def dead_reckoning(seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG)
             "peak_mb": nan}
 
 
-def _case_in_own_process(flag: str, args: list) -> dict:
-    """One case run by this module in a fresh interpreter, so its peak memory is its own."""
-    out = subprocess.run([sys.executable, "-m", "bench.accuracy", flag, json.dumps(args)],
-                         capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)
-
-
 def _row(r: dict) -> str:
     return (f"{r['config']:<15} {r['seed']:>4} {r['particles']:>3} {r['ate_m']:>7.3f} {r['rpe_m']:>7.3f} "
             f"{r['rpe_deg']:>7.2f} {r['wall_s']:>7.1f} {r['ms_per_scan']:>7.1f} {r['peak_mb']:>7.0f}")
@@ -109,7 +100,7 @@ def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
     rows = []
     for name in configs:
         for seed in seeds:
-            rows.append(_case_in_own_process("--case", [name, seed, level]))
+            rows.append(in_own_process("bench.accuracy", "intel", name, seed, level))
             print(_row(rows[-1]), flush=True)
     for seed in seeds:
         rows.append(dead_reckoning(seed, level=level))
@@ -150,7 +141,7 @@ def office_suite(seeds: tuple[int, ...] = (0, 1, 2),
     rows = []
     for name in configs:
         for seed in seeds:
-            r = _case_in_own_process("--office-case", [name, seed])
+            r = in_own_process("bench.accuracy", "office", name, seed)
             rows.append(r)
             print(f"{name:<15} {seed:>4} {r['particles']:>3} {r['trajectory_rms_m']:>7.3f} "
                   f"{r['trajectory_max_m']:>7.3f} {r['dead_reckoning_rms_m']:>7.3f} {r['updates']:>7} "
@@ -167,16 +158,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--level", type=float, default=1.0, help="odometry noise level")
     parser.add_argument("--configs", nargs="+", default=["improved", "assignment"], choices=sorted(CONFIGS))
     parser.add_argument("--office", action="store_true", help="the simulated office loop instead of Intel")
-    parser.add_argument("--case", help=argparse.SUPPRESS)
-    parser.add_argument("--office-case", help=argparse.SUPPRESS)
+    parser.add_argument("--case", help=argparse.SUPPRESS)  # one case, run by in_own_process
     args = parser.parse_args(argv)
-    if args.office_case:
-        name, seed = json.loads(args.office_case)
-        print(json.dumps(office_case(name, seed)))
-        return 0
     if args.case:
-        name, seed, level = json.loads(args.case)
-        print(json.dumps(intel_case(name, seed, level=level)))
+        kind, *rest = json.loads(args.case)
+        print(json.dumps(office_case(*rest) if kind == "office" else intel_case(*rest[:2], level=rest[2])))
         return 0
     if args.office:
         office_suite(tuple(args.seeds), tuple(args.configs))

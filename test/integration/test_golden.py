@@ -17,12 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.common import data_path
 from fastslam import simrun
 from fastslam.config import SlamConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = Path(__file__).with_name("golden.json")
-INTEL = ROOT.parent / "shared" / "data" / "intel-corrected.log.gz"
+INTEL = data_path("intel-corrected.log.gz")
 SIM_SECONDS = 60.0  # of the turtlebot3_world route: ~300 scans
 
 

@@ -12,7 +12,7 @@ help:
 	@echo "make setup       install Debian ROS packages, .venv and build the catkin workspace in .ws/"
 	@echo "make demo        headless SLAM run on the built-in simulator, results in out/demo/"
 	@echo "make test        every test (pytest + rostest), ends with 'N passed, M failed'"
-	@echo "make bench       speed, memory and accuracy benchmarks (see docs/benchmarks.md); make bench accuracy: one suite"
+	@echo "make bench [SUITE...]  speed, memory and accuracy benchmarks (see docs/benchmarks.md)"
 	@echo "make screenshot  RViz under xvfb during a simulator run -> docs/rviz.png"
 
 setup:
@@ -33,18 +33,14 @@ test-ros: $(SETUP_STAMP)
 demo: $(SETUP_STAMP)
 	@bash scripts/demo.sh
 
-# `make bench [suite...]`: a suite with a script in bench/ runs it, the others run
-# through fastslam.bench; the suite names after `bench` are arguments, not targets.
-BENCH_SUITES := $(filter-out bench,$(MAKECMDGOALS))
-BENCH_ALL := speed intel office matcher longrun accuracy
-bench: $(SETUP_STAMP)
-	@cd $(CURDIR) && for s in $(or $(BENCH_SUITES),$(BENCH_ALL)); do \
-	  if [ -f bench/$$s.py ]; then echo "== $$s"; PYTHONPATH=src $(PY) bench/$$s.py || exit 1; \
-	  else PYTHONPATH=src $(PY) -m fastslam.bench $$s || exit 1; fi; done
+# `make bench speed accuracy`: the words after "bench" name the suites (default: all).
 ifeq (bench,$(firstword $(MAKECMDGOALS)))
-$(BENCH_SUITES):
-	@:
+  SUITES := $(wordlist 2,$(words $(MAKECMDGOALS)),$(MAKECMDGOALS))
+  $(eval $(SUITES):;@:)
 endif
+
+bench: $(SETUP_STAMP)
+	@cd $(CURDIR) && PYTHONPATH=src:. $(PY) -m bench $(SUITES)
 
 screenshot: $(SETUP_STAMP)
 	@bash scripts/screenshot.sh

@@ -1,6 +1,6 @@
 """Accuracy over the whole development set, through the offline tool (`make bench accuracy`).
 
-    python bench/accuracy.py [--config config/real.yaml] [--set key=value]... [--seeds 0 1 2]
+    PYTHONPATH=src:. python -m bench.accuracy [--config config/real.yaml] [--set key=value]... [--seeds 0 1 2]
                              [--logs csail aces intel ...] [--json FILE]
 
 Every case runs `python -m fastslam.offline BAG --out DIR --config ... --seed S`, the
@@ -10,7 +10,7 @@ command a user runs, in its own process, one at a time:
   `aces.bag`), scored with their ground-truth relations (Kuemmerle et al. 2009) on the
   pose at every scan (`trajectory_scans.txt`); also on the live `map -> odom` poses;
 - each corrected CARMEN log turned into a bag with simulated odometry noise
-  (`python -m fastslam.carmen LOG --out BAG --odom-noise 1 --seed S`), scored by the
+  (`python -m fastslam.carmen_to_bag LOG --out BAG --odom-noise 1 --seed S`), scored by the
   ATE of `trajectory_scans.txt` against the log's poses.
 
 Per log: the error of each seed, their median and the worst, the worst single relation
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -29,15 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "src"))
+from bench.common import ROOT, data_path
+from fastslam.eval.trajectory import ate, match_by_time, relations_score
+from fastslam.io.trajectory_files import read_relations, read_trajectory
 
-from fastslam.io.trajectory import read_relations, read_trajectory  # noqa: E402
-from fastslam.trajectory_metrics import ate, match_by_time, relations_score  # noqa: E402
-
-# shared/ lies beside the repository (CI clones main next to it), /work/shared here
-DATA = next((p for p in (ROOT.parent / "shared" / "data", Path("/work/shared/data")) if p.is_dir()),
-            ROOT.parent / "shared" / "data")
 REAL = {"csail": "mit-csail", "aces": "aces"}          # bag + relations
 CORRECTED = ("intel", "seattle", "orebro", "freiburg-101", "belgioioso", "edmonton", "acapulco")
 # issue 16's targets
@@ -48,14 +44,9 @@ TARGET_ATE_MEDIAN, TARGET_ATE_WORST = 0.15, 0.5        # [m]
 CACHE = ROOT / "out" / "bench-accuracy"                # converted bags, reused between runs
 
 
-def python() -> str:
-    venv = ROOT / ".venv" / "bin" / "python"
-    return str(venv) if venv.exists() else sys.executable
-
-
 def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) -> dict:
     """The offline tool on bag in its own process; its stats plus the command's wall time."""
-    cmd = [python(), "-m", "fastslam.offline", str(bag), "--out", str(out), "--config", str(config),
+    cmd = [sys.executable, "-m", "fastslam.offline", str(bag), "--out", str(out), "--config", str(config),
            "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)]
     start = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
@@ -68,12 +59,8 @@ def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) 
             "scans": stats["scans"], "warnings": len(warnings)}
 
 
-def _env() -> dict:
-    import os
-
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT / "src") + (":" + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
 
 
 def converted(log: str, seed: int, level: float = 1.0) -> Path:
@@ -83,7 +70,8 @@ def converted(log: str, seed: int, level: float = 1.0) -> Path:
     if not (bag.exists() and gt.exists()):
         CACHE.mkdir(parents=True, exist_ok=True)
         bag.unlink(missing_ok=True)
-        cmd = [python(), "-m", "fastslam.carmen", str(DATA / f"{log}-corrected.log.gz"), "--out", str(bag),
+        cmd = [sys.executable, "-m", "fastslam.carmen_to_bag", str(data_path(f"{log}-corrected.log.gz")),
+               "--out", str(bag),
                "--odom-noise", f"{level:g}", "--seed", str(seed)]
         done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
         if done.returncode != 0:
@@ -94,8 +82,8 @@ def converted(log: str, seed: int, level: float = 1.0) -> Path:
 def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path) -> dict:
     stem = REAL[name]
     out = work / f"{name}-{seed}"
-    row = run_offline(DATA / f"{stem}.bag", out, config, seed, sets)
-    rel = read_relations(DATA / f"{stem}.relations")
+    row = run_offline(data_path(f"{stem}.bag"), out, config, seed, sets)
+    rel = read_relations(data_path(f"{stem}.relations"))
     t, p = read_trajectory(out / "trajectory_scans.txt")
     s = relations_score(t, p, rel)
     lt, lp = read_trajectory(out / "live_poses.txt")
@@ -166,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     config = Path(args.config).resolve()
     shown = config.relative_to(ROOT) if ROOT in config.parents else config  # no is_relative_to on 3.8
     print(f"accuracy: {shown}"
-          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {DATA}")
+          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {data_path('aces.bag').parent}")
     print("rel: relations mean [m] of the pose at every scan (max: worst single relation); ATE [m] after "
           "alignment; live: the same for map->odom's poses (median); wall s and peak MB: whole command, "
           "largest over the seeds")

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs every test: pytest (ROS-free core, integration) then each rostest graph test.
+# Runs every test: ruff, mypy, pytest (ROS-free core, integration), then each rostest graph test.
 # Ends with one line 'N passed, M failed' and exits non-zero on any failure.
 # Usage: scripts/run-tests.sh [pytest|rostest|all] [extra pytest args...]
 # TEST_OUT=dir chooses the results folder; ROSTESTS="test/ros/a.test ..." runs only those.
@@ -12,6 +12,11 @@ outdir="${TEST_OUT:-$here/out/test-results}"; rm -rf "$outdir"; mkdir -p "$outdi
 passed=0; failed=0
 
 if [ "$what" = all ] || [ "$what" = pytest ]; then
+  # Lint and types first: each counts as one test (rules in ruff.toml and mypy.ini).
+  for check in "ruff check ." "mypy"; do
+    if python -m $check > "$outdir/${check%% *}.log" 2>&1; then passed=$((passed + 1))
+    else echo "FAILED $check:"; cat "$outdir/${check%% *}.log"; failed=$((failed + 1)); fi
+  done
   python -m pytest -p no:cacheprovider --junitxml="$outdir/pytest.xml" "$@"
   rc=$?
   read -r p f < <(python - "$outdir/pytest.xml" <<'PY'

@@ -5,9 +5,9 @@ ground-truth relations (the Kuemmerle et al. 2009 metric).
     python -m fastslam.evaluate --relations FILE ESTIMATE [--json]
 
 Trajectory files hold ``t x y theta`` lines or TUM's ``t x y z qx qy qz qw`` (``#``
-comments allowed), e.g. ``out.bag.gt.txt`` from ``python -m fastslam.carmen`` and a
+comments allowed), e.g. ``out.bag.gt.txt`` from ``python -m fastslam.carmen_to_bag`` and a
 SLAM run's trajectory; a relations file ``t1 t2 x y z roll pitch yaw`` lines. See
-:mod:`fastslam.trajectory_metrics` for the definitions.
+:mod:`fastslam.eval.trajectory` for the definitions.
 """
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import argparse
 import json
 import sys
 
-from fastslam.io.trajectory import TrajectoryError, read_relations, read_trajectory
-from fastslam.trajectory_metrics import RelationScores, TrajectoryScores, relations_score, score
+from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score
+from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory
 
 
 def format_table(s: TrajectoryScores) -> str:

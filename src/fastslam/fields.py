@@ -55,7 +55,7 @@ def coerce(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
 def _coerce_one(key: str, kind: str, v: Any) -> Any:
     if v is None and "None" in kind:
         return None
-    base = kind.split("|")[0].strip()
+    base = kind.split("|")[0].split("[")[0].strip().replace("builtins.", "")
     if base == "bool":
         if isinstance(v, bool) or v in (0, 1):
             return bool(v)

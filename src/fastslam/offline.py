@@ -28,15 +28,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .config import ConfigError, SlamConfig, parse_override
-from .frontend import Dropped, Frontend, drop_key
-from .geometry import compose, inverse, relative
-from .io.bag import BagData, BagError, OdomRecord, read_bag
-from .io.mapfile import save_map
-from .io.png import render_map, write_png
-from .io.trajectory import FORMATS, write_trajectory
-from .scan import Scan, laser_problem
-from .slam import FastSlam
+from fastslam.config import ConfigError, SlamConfig, parse_override
+from fastslam.eval.render import render_map, write_png
+from fastslam.filter.frontend import Dropped, Frontend, drop_key
+from fastslam.filter.scan import Scan, laser_problem
+from fastslam.filter.slam import FastSlam
+from fastslam.geometry import compose, inverse, relative
+from fastslam.io.bag_reader import BagData, read_bag
+from fastslam.io.map_files import save_map
+from fastslam.io.records import BagError, OdomRecord
+from fastslam.io.trajectory_files import FORMATS, write_trajectory
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "slam.yaml"
 
@@ -51,26 +52,25 @@ class OfflineResult:
     dropped: dict[str, int] = field(default_factory=dict)
     events: list[str] = field(default_factory=list)
     # one row per scan the filter saw: t, odometry x y theta, live pose x y theta,
-    # index of the last processed update, filter life (resets before it), processed
-    scan_rows: list[tuple] = field(default_factory=list)
+    # index of the last processed update, filter life (resets before it), processed (0/1)
+    scan_rows: list[list[float]] = field(default_factory=list)
 
     def live_poses(self) -> NDArray[np.float64]:
         """(S, 4) rows t, x, y, theta: map->odom composed with the odometry at every scan."""
-        rows = np.array([r[:1] + r[4:7] for r in self.scan_rows], dtype=np.float64)
-        return rows.reshape(-1, 4)
+        rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
+        return rows[:, [0, 4, 5, 6]]
 
     def scan_trajectory(self) -> NDArray[np.float64]:
         """(S, 4) rows t, x, y, theta: the final best particle's path at every scan of the
         filter's last life; between processed scans, the odometry since the last one
         composed onto its pose."""
-        life = self.scan_rows[-1][8] if self.scan_rows else 0
-        rows = [r for r in self.scan_rows if r[8] == life]
-        if not rows:
+        rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
+        rows = rows[rows[:, 8] == rows[-1, 8]] if len(rows) else rows
+        if not len(rows):
             return np.zeros((0, 4))
-        t = np.array([r[0] for r in rows])
-        odom = np.array([r[1:4] for r in rows], dtype=np.float64)
-        k = np.array([r[7] for r in rows], dtype=np.intp)
-        done = np.array([r[9] for r in rows], dtype=bool)
+        t, odom = rows[:, 0], rows[:, 1:4]
+        k = rows[:, 7].astype(np.intp)
+        done = rows[:, 9] > 0
         traj = self.slam.trajectory()
         at_update = np.empty((len(traj), 3))
         at_update[k[done]] = odom[done]          # odometry of each processed scan
@@ -108,14 +108,15 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
             scan = Scan.from_laser(rec.ranges, rec.angle_min, rec.angle_increment, rec.range_min,
                                    rec.range_max, mount=mount, upside_down=data.mount.upside_down, stamp=rec.t)
             info = front.add_scan(scan)
+            odom = front.scan_odom
+            assert odom is not None  # every add_scan that returns sets it
             if info.processed:
                 result.updates += 1
                 result.update_ms.append(1000.0 * info.seconds)
-                map_to_odom = compose(slam.poses[slam.best], inverse(front.last_odom))
-            odom = front.scan_odom
+                map_to_odom = compose(slam.poses[slam.best], inverse(odom))
             live = slam.poses[slam.best] if info.processed else compose(map_to_odom, odom)
-            result.scan_rows.append((rec.t, *odom.tolist(), *live.tolist(), slam.updates - 1, front.resets,
-                                     info.processed))
+            result.scan_rows.append([rec.t, *odom.tolist(), *live.tolist(), slam.updates - 1, front.resets,
+                                     float(info.processed)])
         except Dropped as err:
             key = drop_key(str(err))
             result.dropped[key] = result.dropped.get(key, 0) + 1

@@ -2,18 +2,17 @@
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from fastslam.bench_accuracy import INTEL_LOG
-from fastslam.bench_matcher import intel_scans, match_errors
+from bench.common import data_path
+from bench.matcher import intel_scans, match_errors
 from fastslam.config import SlamConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 
-pytestmark = pytest.mark.skipif(not INTEL_LOG.exists(), reason="the Intel log is in ../shared/data")
 
 
 def _median_mm(overrides: dict) -> float:
+    assert data_path("intel-corrected.log.gz").is_file(), "the Intel log belongs in ../shared/data"
     cfg = SlamConfig.from_yaml(ROOT / "config" / "real.yaml", overrides)
     err = match_errors(cfg, intel_scans(150), seed=0)
     assert len(err) > 140                                  # nearly every match trusted

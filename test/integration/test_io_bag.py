@@ -6,11 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.io.bag import BagError, _pick, OdomRecord, ScanRecord, StaticTransform, read_bag, write_bag
-from fastslam.io.bag_write import BagWriter
+from fastslam.filter.scan import Scan
 from fastslam.geometry import wrap_angle
-from fastslam.io.transforms import LaserMount
-from fastslam.scan import Scan
+from fastslam.io.bag_reader import _pick, read_bag
+from fastslam.io.bag_writer import BagWriter, write_bag
+from fastslam.io.records import BagError, OdomRecord, ScanRecord
+from fastslam.transforms import LaserMount, StaticTransform
 
 pytest.importorskip("rosbags")
 
@@ -129,7 +130,8 @@ def test_laser_in_the_base_frame(tmp_path):
 
 def test_topic_choice_messages():
     topics = {"/odom": "nav_msgs/msg/Odometry", "/imu": "sensor_msgs/msg/Imu"}
-    with pytest.raises(BagError, match=r"no sensor_msgs/msg/LaserScan topic in the bag; topics: /imu \[sensor_msgs/msg/Imu\]"):
+    expected = r"no sensor_msgs/msg/LaserScan topic in the bag; topics: /imu \[sensor_msgs/msg/Imu\]"
+    with pytest.raises(BagError, match=expected):
         _pick(topics, "sensor_msgs/msg/LaserScan", None, "scan")
     assert _pick(topics, "nav_msgs/msg/Odometry", None, "odometry") == "/odom"
 

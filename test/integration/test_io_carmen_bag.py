@@ -1,4 +1,4 @@
-"""The Intel CARMEN log -> bag -> fastslam.io.bag round trip, and the converter CLI."""
+"""The Intel CARMEN log -> bag -> fastslam.io.bag_reader round trip, and the converter CLI."""
 from __future__ import annotations
 
 import gzip
@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fastslam import carmen as carmen_cli
+from fastslam import carmen_to_bag as carmen_cli
+from fastslam.carmen_to_bag import convert, reference_path
+from fastslam.eval.trajectory import ate
 from fastslam.geometry import wrap_angle
-from fastslam.io.bag import read_bag
-from fastslam.io.carmen import read_log
-from fastslam.io.carmen_bag import convert, reference_path
-from fastslam.io.trajectory import read_trajectory
-from fastslam.trajectory_metrics import ate
+from fastslam.io.bag_reader import read_bag
+from fastslam.io.carmen_log import read_log
+from fastslam.io.trajectory_files import read_trajectory
 
 pytest.importorskip("rosbags")
 

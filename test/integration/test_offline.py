@@ -5,11 +5,13 @@ import numpy as np
 
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
+from fastslam.eval.trajectory import interpolate_poses
 from fastslam.geometry import relative
-from fastslam.io.bag import StaticTransform, read_bag, write_bag
-from fastslam.io.mapfile import load_map
-from fastslam.io.trajectory import read_trajectory
-from fastslam.trajectory_metrics import interpolate_poses
+from fastslam.io.bag_reader import read_bag
+from fastslam.io.bag_writer import write_bag
+from fastslam.io.map_files import load_map
+from fastslam.io.trajectory_files import read_trajectory
+from fastslam.transforms import StaticTransform
 
 
 def test_bag_replay_equals_the_direct_run(tmp_path):

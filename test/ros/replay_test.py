@@ -19,10 +19,12 @@ import rostest
 from nav_msgs.msg import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
-from assign5.params import split_params  # noqa: E402
-from fastslam import offline, simrun  # noqa: E402
-from fastslam.io.bag import BagData, StaticTransform, read_bag, write_bag  # noqa: E402
-from fastslam.metrics import trajectory_errors  # noqa: E402
+from assign5.params import split_params
+from fastslam import offline, simrun
+from fastslam.eval.maps import trajectory_errors
+from fastslam.io.bag_reader import BagData, read_bag
+from fastslam.io.bag_writer import write_bag
+from fastslam.transforms import StaticTransform
 
 
 class Replay(unittest.TestCase):

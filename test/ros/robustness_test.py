@@ -22,9 +22,11 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
-from fastslam.bench import room_ranges  # noqa: E402
+from fastslam.sim.lidar import cast_rays
+from fastslam.sim.world_loader import load_world
 
 ANGLES = np.radians(np.arange(360.0))
+ROOM = load_world(os.path.join(os.path.dirname(__file__), "..", "..", "worlds", "pillar_room.yaml"))
 
 
 class Robustness(unittest.TestCase):
@@ -73,7 +75,7 @@ class Robustness(unittest.TestCase):
         s.angle_min, s.angle_increment = 0.0, math.radians(1.0)
         s.angle_max = math.radians(359.0)
         s.range_min, s.range_max = 0.12, 3.5
-        r = room_ranges(np.array([self.x, 0.0, 0.0]), ANGLES)
+        r = cast_rays(ROOM, np.array([self.x, 0.0, 0.0]), ANGLES)
         s.ranges = np.where(r > 3.5, np.inf, r).tolist()
         for k, v in fields.items():
             setattr(s, k, v)

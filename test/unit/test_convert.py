@@ -9,7 +9,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
 from assign5.convert import BadMessage, check_scan, grid_msgs, mount_from_transform, odom_pose, scan_from_msg
-from fastslam.grid import GridMaps
+from fastslam.filter.grid import GridMaps
 
 
 def transform(x, y, q):

@@ -8,9 +8,17 @@ import numpy as np
 import pytest
 
 from fastslam import evaluate
-from fastslam.io.trajectory import TrajectoryError, read_relations, read_trajectory, write_trajectory
-from fastslam.trajectory_metrics import (align_2d, apply_alignment, ate, interpolate_poses, match_by_time,
-                                         relations_score, rpe, score)
+from fastslam.eval.trajectory import (
+    align_2d,
+    apply_alignment,
+    ate,
+    interpolate_poses,
+    match_by_time,
+    relations_score,
+    rpe,
+    score,
+)
+from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory, write_trajectory
 
 
 def loop(rng: np.random.Generator, n: int = 100) -> np.ndarray:

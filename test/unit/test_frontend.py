@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from fastslam.config import SlamConfig
-from fastslam.frontend import Dropped, Frontend
-from fastslam.scan import Scan, laser_problem
-from fastslam.slam import FastSlam
+from fastslam.filter.frontend import Dropped, Frontend
+from fastslam.filter.scan import Scan, laser_problem
+from fastslam.filter.slam import FastSlam
 
 ANGLES = np.radians(np.arange(0, 360, 10.0))
 
@@ -93,7 +93,7 @@ def test_fence_post_and_reversed_scans_are_fine():
 
 
 def test_drop_key_counts_reasons_with_different_values_as_one():
-    from fastslam.frontend import drop_key
+    from fastslam.filter.frontend import drop_key
 
     a = drop_key("no odometry at the scan's time (latest odometry is +0.61 s newer)")
     b = drop_key("no odometry at the scan's time (latest odometry is -1.20 s newer)")

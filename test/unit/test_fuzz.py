@@ -4,8 +4,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fastslam.config import SlamConfig
-from fastslam.scan import Scan
-from fastslam.slam import FastSlam
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
 
 reading = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32),
                     st.floats(min_value=0.0, max_value=5.0))

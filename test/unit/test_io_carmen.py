@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.io.carmen import CarmenError, flaser_geometry, read_log
-from fastslam.io.carmen_bag import increasing_times, log_mount
+from fastslam.carmen_to_bag import increasing_times
+from fastslam.io.carmen_log import CarmenError, flaser_geometry, read_log
 
 SNIPPET = """\
 # message formats defined: PARAM SYNC ODOM FLASER RLASER TRUEPOS
@@ -68,9 +68,9 @@ def test_odom_and_params(log_path):
 def test_laser_mount_prefers_robotlaser_poses(log_path):
     log = read_log(log_path)
     # robot at (1, 2) facing +y, laser at (1, 2.5): 0.5 m straight ahead
-    np.testing.assert_allclose(log_mount(log), (0.5, 0.0, 0.0), atol=1e-12)
+    np.testing.assert_allclose(log.laser_mount(), (0.5, 0.0, 0.0), atol=1e-12)
     log.scans.pop(1)
-    assert log_mount(log) == (0.25, 0.0, 0.0)    # FLASER only: the PARAM offset
+    assert log.laser_mount() == (0.25, 0.0, 0.0)    # FLASER only: the PARAM offset
 
 
 def test_max_range_override_and_limit(log_path):

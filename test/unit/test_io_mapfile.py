@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 import yaml
 
-from fastslam.io import mapfile
-from fastslam.io.mapfile import MapLoadError, MapSaveError, load_map, save_map
+from fastslam.io import map_files as mapfile
+from fastslam.io.map_files import MapLoadError, MapSaveError, load_map, save_map
 
 # grid row 0 (bottom) = [-1, 0, 25], row 1 (top) = [26, 65, 100]
 OCC = np.array([[-1, 0, 25], [26, 65, 100]], dtype=np.int8)
-HEADER = b"P5\n# CREATOR: fastslam.io.mapfile 0.050 m/pix\n3 2\n255\n"
+HEADER = b"P5\n# CREATOR: fastslam.io.map_files 0.050 m/pix\n3 2\n255\n"
 # image rows top first: grid row 1 -> 205 0 0, then grid row 0 -> 205 254 254
 PIXELS = bytes([205, 0, 0, 205, 254, 254])
 

@@ -7,8 +7,14 @@ import numpy as np
 import pytest
 
 from fastslam.geometry import wrap_angle
-from fastslam.io.odom_noise import (OdomNoise, integrate_deltas, noise_sigmas, noisy_odometry,
-                                    odometry_deltas, perturb_deltas)
+from fastslam.sim.odometry_noise import (
+    OdomNoise,
+    integrate_deltas,
+    noise_sigmas,
+    noisy_odometry,
+    odometry_deltas,
+    perturb_deltas,
+)
 
 
 def random_walk(rng: np.random.Generator, n: int = 200) -> np.ndarray:

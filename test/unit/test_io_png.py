@@ -8,7 +8,7 @@ import zlib
 import numpy as np
 import pytest
 
-from fastslam.io.png import draw_polyline, encode_png, render_map, world_to_pixels, write_png
+from fastslam.eval.render import draw_polyline, encode_png, render_map, world_to_pixels, write_png
 
 RED = (255, 0, 0)
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
+from fastslam.filter.motion import odometry_step, sample_motion_assignment, sample_motion_odometry
 from fastslam.geometry import circular_mean, compose, inverse, relative, wrap_angle
-from fastslam.motion import odometry_step, sample_motion_assignment, sample_motion_odometry
 
 ZERO = np.zeros(3)
 
@@ -58,7 +58,7 @@ def test_compose_inverse_round_trip():
 
 
 def test_odometry_std_hand_computed():
-    from fastslam.motion import odometry_std
+    from fastslam.filter.motion import odometry_std
 
     # 0.5 m straight ahead, then a 0.2 rad turn: rot1 = 0, trans = 0.5, rot2 = 0.2
     alphas = (0.1, 0.02, 0.05, 0.1)                    # srr, srt, str, stt

@@ -4,8 +4,8 @@ import pytest
 
 from assign5.params import NodeConfig, split_params
 from fastslam.config import ConfigError, SlamConfig
-from fastslam.metrics import map_quality, trajectory_errors
-from fastslam.odombuffer import OdomBuffer
+from fastslam.eval.maps import map_quality, trajectory_errors
+from fastslam.filter.odom_buffer import OdomBuffer
 
 
 def test_params_split_into_node_and_core():
@@ -74,7 +74,7 @@ def test_map_quality_counts_recall_and_spurious_cells():
 
 
 def test_points_in_the_frame_of_a_pose():
-    from fastslam.metrics import in_frame_of
+    from fastslam.eval.maps import in_frame_of
 
     out = in_frame_of(np.array([1.0, 2.0, np.pi / 2]), np.array([[1.0, 3.0], [0.0, 2.0]]))
     np.testing.assert_allclose(out, [[1.0, 0.0], [0.0, 1.0]], atol=1e-12)

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from fastslam import raycast
-from fastslam.grid import GridMaps, logodds_to_occupancy
+from fastslam.filter import raycast
+from fastslam.filter.grid import GridMaps, LogOddsSteps, logodds_to_occupancy
 
 RES = 0.1
 
@@ -64,7 +64,7 @@ def test_update_marks_cells_before_the_hit_free_and_the_hit_occupied_only():
     grid, rays = grid_and_rays([0.0])  # beam along +x from cell (30, 30)
     hit_step = rays.step_of_range(np.array([0.5]))
     raycast.update_logodds(grid, rays, hit_step, hit_step, first_step=rays.first_step_at(0.12),
-                           l_free=-4, l_occ=9, l_min=-100, l_max=100)
+                           steps=LogOddsSteps(-4, 9, -100, 100))
     row = grid.logodds[0, 30]
     # range_min 0.12 m: steps 0 and 1 untouched, 2..4 free, step 5 (x = 0.5 m) hit
     assert list(row[30:37]) == [0, 0, -4, -4, -4, 9, 0]
@@ -75,7 +75,7 @@ def test_a_cell_crossed_twice_in_one_scan_changes_once_and_hits_win():
     grid, rays = grid_and_rays([0.0, 0.0, 0.0])
     ends = rays.step_of_range(np.array([0.5, 0.3, 0.8]))
     raycast.update_logodds(grid, rays, ends, ends, first_step=np.zeros_like(ends),
-                           l_free=-4, l_occ=9, l_min=-100, l_max=100)
+                           steps=LogOddsSteps(-4, 9, -100, 100))
     assert list(grid.logodds[0, 30, 30:40]) == [-4, -4, -4, 9, -4, 9, -4, -4, 9, 0]
 
 
@@ -84,7 +84,7 @@ def test_clamps_hold():
     ends = rays.step_of_range(np.array([0.5]))
     for _ in range(30):
         raycast.update_logodds(grid, rays, ends, ends, first_step=np.zeros_like(ends),
-                               l_free=-4, l_occ=9, l_min=-20, l_max=50)
+                               steps=LogOddsSteps(-4, 9, -20, 50))
     assert list(grid.logodds[0, 30, 30:36]) == [-20] * 5 + [50]
 
 
@@ -93,7 +93,8 @@ def test_expected_ranges_in_a_square_room_match_geometry_within_one_cell():
     grid = GridMaps(2, (60, 60), RES, (-3.0, -3.0))
     centres = grid.cell_to_world(np.stack(np.meshgrid(np.arange(60), np.arange(60)), -1))
     wall = (np.abs(centres[..., 0]) > half) | (np.abs(centres[..., 1]) > half)
-    grid.logodds[:] = np.where(wall & (np.maximum(np.abs(centres[..., 0]), np.abs(centres[..., 1])) < half + RES), 50, -10)
+    near = np.maximum(np.abs(centres[..., 0]), np.abs(centres[..., 1])) < half + RES
+    grid.logodds[:] = np.where(wall & near, 50, -10)
     angles = np.radians(np.arange(0, 360, 3.0))
     origins = np.array([[0.02, 0.03], [0.4, -0.3]])
     rays = raycast.trace(grid, origins, np.tile(angles, (2, 1)), 3.0)
@@ -114,7 +115,7 @@ def test_nothing_occupied_gives_max_range_and_outside_cells_are_ignored():
     np.testing.assert_allclose(raycast.expected_ranges(grid, rays), [[1.5, 1.5]])
     ends = rays.step_of_range(np.array([1.5, 1.5]))
     raycast.update_logodds(grid, rays, ends + 1, np.array([[-1, -1]]), first_step=np.zeros_like(ends),
-                           l_free=-1, l_occ=1, l_min=-5, l_max=5)
+                           steps=LogOddsSteps(-1, 1, -5, 5))
     # cells 19 down to 4 of row 10 (16 cells); the +x beam leaves the grid after cell 19
     assert list(np.flatnonzero(grid.logodds[0].reshape(-1))) == [10 * 20 + i for i in range(4, 20)]
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from fastslam.resample import low_variance_indices, neff, slot_parents
-from fastslam.weights import assignment_log_weights, normalise_log
+from fastslam.filter.resample import low_variance_indices, neff, slot_parents
+from fastslam.filter.weights import assignment_log_weights, normalise_log
 
 
 def test_weight_by_hand():

@@ -4,12 +4,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fastslam import scanmatch
-from fastslam.bench import room_ranges
+from bench.speed import room_ranges
 from fastslam.config import SlamConfig
-from fastslam.grid import GridMaps
-from fastslam.scan import Beams, Scan, select_beams
-from fastslam.slam import FastSlam
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams, spread_returns
+from fastslam.filter.slam import FastSlam
+from fastslam.filter.weights import endpoint_distances
+from fastslam.match import MatchParams, match_poses
+from fastslam.match.refine import icp, surface_normals
+from fastslam.match.search import pick, pool_occupied
 
 ANGLES = np.radians(np.arange(360.0))
 
@@ -36,10 +39,9 @@ def test_matcher_recovers_a_known_offset():
     truth = np.array([0.2, -0.3, 0.4])
     beams = select_beams(_scan(truth), slam.cfg)
     offsets = np.array([[0.2, 0.0, np.radians(5)], [-0.15, 0.12, -np.radians(5)], [0.0, 0.0, 0.0]])
-    slam.poses = truth + offsets
-    trusted = scanmatch.refine_poses(slam, beams)
-    assert trusted.all()
-    err = slam.poses - truth
+    match = match_poses(slam.grid, truth + offsets, beams, MatchParams.from_config(slam.cfg))
+    assert match.trusted.all()
+    err = match.poses - truth
     assert np.abs(err[:, :2]).max() < 0.03          # within about half a cell (0.05 m)
     assert np.abs(err[:, 2]).max() < np.radians(1.5)  # the map itself is only so sharp
 
@@ -47,19 +49,18 @@ def test_matcher_recovers_a_known_offset():
 def test_matcher_falls_back_on_an_empty_map():
     cfg = SlamConfig(particles=4, seed=0, proposal="scan_match")
     slam = FastSlam(cfg)
-    slam.poses = np.array([[0.1, 0.0, 0.0]] * 4)
-    before = slam.poses.copy()
-    trusted = scanmatch.refine_poses(slam, select_beams(_scan(np.zeros(3)), cfg))
-    assert not trusted.any()
-    np.testing.assert_array_equal(slam.poses, before)
+    poses = np.array([[0.1, 0.0, 0.0]] * 4)
+    match = match_poses(slam.grid, poses, select_beams(_scan(np.zeros(3)), cfg), MatchParams.from_config(cfg))
+    assert not match.trusted.any()
+    np.testing.assert_array_equal(match.poses, poses)
 
 
 def test_matcher_falls_back_without_returns():
     slam, pose = _mapped()
     scan = Scan(ranges=np.full(360, np.inf), angles=ANGLES, range_min=0.12, range_max=3.5)
-    before = slam.poses.copy()
-    assert not scanmatch.refine_poses(slam, select_beams(scan, slam.cfg)).any()
-    np.testing.assert_array_equal(slam.poses, before)
+    match = match_poses(slam.grid, slam.poses, select_beams(scan, slam.cfg), MatchParams.from_config(slam.cfg))
+    assert not match.trusted.any()
+    np.testing.assert_array_equal(match.poses, slam.poses)
 
 
 def _one_wall_grid() -> GridMaps:
@@ -74,7 +75,7 @@ def test_endpoint_distances_are_distances_to_the_nearest_occupied_cell_centre():
     beams = Beams(angles=np.array([0.0, 0.0, np.pi / 2]), ranges=np.array([0.425, 0.525, np.inf]),
                   hit=np.array([True, True, False]), free_range=np.array([0.425, 0.525, 0.0]), range_min=0.1)
     poses = np.array([[0.0, 0.025, 0.0], [0.0, 0.025, 0.0]])
-    d = scanmatch.endpoint_distances(grid, poses, beams, max_dist=0.3)
+    d = endpoint_distances(grid, poses, beams, max_dist=0.3)
     assert d.shape == (2, 3)
     assert d[0, 0] == pytest.approx(0.1, abs=1e-9)
     assert d[0, 1] == pytest.approx(0.0, abs=1e-9)
@@ -86,22 +87,19 @@ def test_endpoint_distances_cap_far_walls():
     grid = _one_wall_grid()
     beams = Beams(angles=np.array([0.0]), ranges=np.array([0.1]), hit=np.array([True]),
                   free_range=np.array([0.1]), range_min=0.05)
-    d = scanmatch.endpoint_distances(grid, np.array([[0.0, 0.025, 0.0]] * 2), beams, max_dist=0.15)
+    d = endpoint_distances(grid, np.array([[0.0, 0.025, 0.0]] * 2), beams, max_dist=0.15)
     np.testing.assert_array_equal(d, [[0.15], [0.15]])
 
 
 def test_pooled_flags_mark_blocks_with_an_occupied_cell():
     rng = np.random.default_rng(0)
     a = rng.integers(-100, 30, (2, 8, 12), dtype=np.int8)
-    half, quarter = scanmatch._pool_occupied(a)
+    half, quarter = pool_occupied(a)
     np.testing.assert_array_equal(half, a.reshape(2, 4, 2, 6, 2).max(axis=(2, 4)) > 0)
     np.testing.assert_array_equal(quarter, a.reshape(2, 2, 4, 3, 4).max(axis=(2, 4)) > 0)
 
 
 def test_returns_subset_spreads_the_returns_evenly():
-    from fastslam.scan import Beams
-    from fastslam.scanmatch import returns_subset
-
     hit = np.ones(100, dtype=bool)
     hit[::3] = False                                          # 66 returns
     beams = Beams(angles=np.linspace(-1, 1, 100), ranges=np.linspace(1, 2, 100), hit=hit,
@@ -134,7 +132,7 @@ def test_icp_leaves_the_corridor_direction_to_the_prior():
     start = np.array([[0.06, 0.04, 0.02]])             # the particle's sample, further off
     spread = np.array([0.05, 0.05, 0.05])
     normals = np.tile([0.0, 1.0], (len(local), 1))     # walls along x
-    pose, _ = scanmatch._icp(grid, start, local, normals, centre, spread)
+    pose, _ = icp(grid, start, local, normals, centre, spread)
     assert pose[0, 0] == pytest.approx(0.03, abs=0.003)
     assert abs(pose[0, 1]) < 0.003
     assert abs(pose[0, 2]) < 0.002
@@ -144,11 +142,11 @@ def test_icp_refines_a_sub_cell_offset_in_the_room():
     slam, _ = _mapped(particles=1)
     truth = np.array([0.2, -0.3, 0.4])
     beams = select_beams(_scan(truth), slam.cfg)
-    sel = scanmatch._spread_returns(beams, 60)
-    local = scanmatch._end_points(beams, sel)
+    sel = spread_returns(beams, 60)
+    local = end_points(beams, sel)
     start = truth + np.array([[0.04, -0.03, 0.02]])
     spread = np.array([0.1, 0.1, 0.1])                 # a weak prior, centred on the start
-    pose, _ = scanmatch._icp(slam.grid, start, local, scanmatch._normals(beams, sel), start, spread)
+    pose, _ = icp(slam.grid, start, local, surface_normals(beams, sel), start, spread)
     assert np.hypot(*(pose[0, :2] - truth[:2])) < 0.015
     assert abs(pose[0, 2] - truth[2]) < np.radians(0.5)
 
@@ -159,30 +157,24 @@ def test_motion_prior_is_tighter_along_the_heading():
     poses = np.array([[0.0, 0.0, np.pi / 2]])           # heading +y
     scores = np.zeros((1, 1, 9), dtype=np.int64)
     centre = np.array([[0.05, 0.05, np.pi / 2]])        # 5 cm off in x (across) and y (along)
-    out = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.02, 0.2, 0.1]), 60)
+    out = pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.02, 0.2, 0.1]), 60)
     np.testing.assert_allclose(out[0], [0.05, 0.05, np.pi / 2])
-    out = scanmatch._pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.2, 0.02, 0.1]), 60)
+    out = pick(scores, poses, np.zeros(1), 1, 0.05, centre, np.array([0.2, 0.02, 0.1]), 60)
     np.testing.assert_allclose(out[0], [0.05, 0.05, np.pi / 2])
 
 
 def test_matcher_with_the_motion_prior_and_icp_recovers_the_truth():
     slam, _ = _mapped()
-    slam = _with(slam, match_prior="motion", match_refine="icp")
+    params = MatchParams.from_config(slam.cfg.replace(match_prior="motion", match_refine="icp"))
     truth = np.array([0.2, -0.3, 0.4])
     beams = select_beams(_scan(truth), slam.cfg)
     centre = np.tile(truth + [0.03, -0.02, 0.02], (3, 1))              # odometry's prediction
-    slam.poses = centre + np.array([[0.1, 0.0, 0.05], [-0.08, 0.06, -0.04], [0.0, 0.0, 0.0]])
-    trusted = scanmatch.refine_poses(slam, beams, prior=(centre, np.array([0.05, 0.05, 0.05])))
-    assert trusted.all()
-    err = slam.poses - truth
+    poses = centre + np.array([[0.1, 0.0, 0.05], [-0.08, 0.06, -0.04], [0.0, 0.0, 0.0]])
+    match = match_poses(slam.grid, poses, beams, params, prior=(centre, np.array([0.05, 0.05, 0.05])))
+    assert match.trusted.all()
+    err = match.poses - truth
     assert np.abs(err[:, :2]).max() < 0.015
     assert np.abs(err[:, 2]).max() < np.radians(0.5)
-
-
-def _with(slam: FastSlam, **changes) -> FastSlam:
-    """The same maps under a changed configuration."""
-    slam.cfg = slam.cfg.replace(**changes)
-    return slam
 
 
 def test_normals_are_perpendicular_to_the_wall_and_missing_at_gaps():
@@ -190,7 +182,7 @@ def test_normals_are_perpendicular_to_the_wall_and_missing_at_gaps():
     angles = np.radians(np.array([-10.0, -5.0, 0.0, 5.0, 10.0, 40.0]))
     ranges = np.concatenate([1.0 / np.cos(angles[:5]), [3.0]])
     beams = Beams(angles=angles, ranges=ranges, hit=np.ones(6, dtype=bool), free_range=ranges, range_min=0.1)
-    normals = scanmatch._normals(beams, np.arange(6))
+    normals = surface_normals(beams, np.arange(6))
     np.testing.assert_array_equal(normals[[0, 4, 5]], np.zeros((3, 2)))   # an end of the scan, a gap
     np.testing.assert_allclose(np.abs(normals[1:4]), [[1.0, 0.0]] * 3, atol=1e-12)
 
@@ -201,7 +193,7 @@ def test_icp_covariance_is_wide_only_along_the_corridor():
     normals = np.tile([0.0, 1.0], (len(local), 1))
     centre = np.zeros((1, 3))
     spread = np.array([0.05, 0.05, 0.05])
-    _, info = scanmatch._icp(grid, centre.copy(), local, normals, centre, spread)
+    _, info = icp(grid, centre.copy(), local, normals, centre, spread)
     std = np.sqrt(np.diag(np.linalg.inv(info[0])))
     # along: the prior alone; across: 42 end points of sigma 0.05 m and the prior;
     # heading: their lever arms along the walls (the walls' y cancel between the two)

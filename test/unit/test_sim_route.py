@@ -10,7 +10,8 @@ import pytest
 from fastslam.sim.robot import integrate
 from fastslam.sim.route import RouteFollower, load_route, parse_route
 from fastslam.sim.sim import SimConfig, Simulation
-from fastslam.sim.world import WorldError, load_world
+from fastslam.sim.world import WorldError
+from fastslam.sim.world_loader import load_world
 
 WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 

@@ -13,7 +13,8 @@ from assign5.teleop_node import TeleopState, press, ramp, status_line, tick
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def keys(seq: str, state: TeleopState = TeleopState()) -> TeleopState:
+def keys(seq: str, state: TeleopState | None = None) -> TeleopState:
+    state = state or TeleopState()
     for k in seq:
         state, _ = press(state, k)
     return state

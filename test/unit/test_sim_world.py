@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fastslam.sim.pgm import mask_segments, read_pgm
-from fastslam.sim.world import World, WorldError, inside_polygon, load_world, world_from_dict
+from fastslam.sim.world import World, WorldError, inside_polygon, world_from_dict
+from fastslam.sim.world_loader import load_world, mask_segments
 
 WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 
@@ -116,9 +116,10 @@ def test_pgm_runs_are_merged_and_header_checked(tmp_path: Path) -> None:
     occ = np.zeros((4, 6), bool)
     occ[1, :] = True                     # one wall of 6 pixels -> 4 segments, not 24
     assert len(mask_segments(occ, 0.1, (0.0, 0.0, 0.0))) == 4
-    (tmp_path / "x.pgm").write_bytes(b"P2\n1 1\n255\n0\n")
+    y = _write_map(tmp_path, np.zeros((2, 2), np.uint8))
+    (tmp_path / "m.pgm").write_bytes(b"P2\n1 1\n255\n0\n")
     with pytest.raises(WorldError, match="P5"):
-        read_pgm(tmp_path / "x.pgm")
+        load_world(y)
     y = _write_map(tmp_path, np.zeros((2, 2), np.uint8))
     y.write_text(y.read_text().replace("resolution: 0.5", "resolution: -1"))
     with pytest.raises(WorldError, match="resolution"):

@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from fastslam.bench import room_ranges
+from bench.speed import room_ranges
 from fastslam.config import SlamConfig
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
 from fastslam.geometry import compose, relative
-from fastslam.scan import Scan
-from fastslam.slam import FastSlam
 
 ANGLES = np.radians(np.arange(360.0))
 
@@ -115,16 +115,16 @@ def test_no_return_beams_clear_space_but_do_not_weigh():
 
 
 def test_pruned_history_keeps_every_living_particles_path(monkeypatch):
-    import fastslam.slam as slam_module
+    import fastslam.filter.history as history_module
 
     truth = square_path(120)
     odom = drifting_odometry(truth)
-    monkeypatch.setattr(slam_module, "PRUNE_EVERY", 10**9)
+    monkeypatch.setattr(history_module, "PRUNE_EVERY", 10**9)
     full = run(SlamConfig(particles=20, seed=1), truth, odom)
     paths = [full.trajectory(i) for i in range(20)]
-    monkeypatch.setattr(slam_module, "PRUNE_EVERY", 7)
+    monkeypatch.setattr(history_module, "PRUNE_EVERY", 7)
     pruned = run(SlamConfig(particles=20, seed=1), truth, odom)
     for i in range(20):
         assert np.array_equal(pruned.trajectory(i), paths[i])
-    rows = sum(len(h) for h in pruned._hist_poses)
+    rows = pruned.history.kept_rows
     assert rows < 0.3 * 120 * 20  # lineages merge: far fewer than N poses per update are kept

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .grid import GridMaps, scratch
+from fastslam.filter.grid import GridMaps, LogOddsSteps
+from fastslam.filter.scan import Beams
+from fastslam.filter.scratch import scratch
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
@@ -33,16 +36,16 @@ class Rays:
     inside: every traced cell lies in the grid, so no -1 needs checking.
     """
 
-    flat: NDArray[np.integer]
+    flat: NDArray[np.integer[Any]]
     steps: NDArray[np.int64]
     max_range: float
     inside: bool
 
-    def step_of_range(self, ranges: NDArray) -> NDArray[np.int64]:
+    def step_of_range(self, ranges: NDArray[np.float64]) -> NDArray[np.int64]:
         """(n, M) step at which a range (M,) or (n, M) ends, clipped to the beam."""
         return _step_of_range(self.steps, self.max_range, ranges)
 
-    def range_of_step(self, k: NDArray) -> NDArray[np.float64]:
+    def range_of_step(self, k: NDArray[np.float64]) -> NDArray[np.float64]:
         """(n, M) distance from the origin of step k (n, M) of each beam [m]."""
         return np.minimum(k / np.maximum(self.steps, 1), 1.0) * self.max_range
 
@@ -51,7 +54,7 @@ class Rays:
         return np.ceil(distance / self.max_range * self.steps).astype(np.int64)
 
 
-def _step_of_range(steps: NDArray[np.int64], max_range: float, ranges: NDArray) -> NDArray[np.int64]:
+def _step_of_range(steps: NDArray[np.int64], max_range: float, ranges: NDArray[np.float64]) -> NDArray[np.int64]:
     k = np.rint(np.asarray(ranges) / max_range * steps)
     return np.minimum(k, steps).astype(np.int64)
 
@@ -64,7 +67,7 @@ class _Lines:
     start: NDArray[np.int64]      # (n, 2) cell of each origin
     steps: NDArray[np.int64]      # (n, M)
     slope: NDArray[np.float32]    # (n, M, 2)
-    base: NDArray[np.integer]     # (n,) flat index of each start cell
+    base: NDArray[np.integer[Any]]     # (n,) flat index of each start cell
     shape: tuple[int, int]        # (H, W) of the grid
 
     @property
@@ -104,7 +107,7 @@ def _lines(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.floa
     np.divide(dx, div, out=slope[..., 0], casting="unsafe")  # float64 quotient, then float32
     np.divide(dy, div, out=slope[..., 1], casting="unsafe")
     index_type = np.int32 if grid.logodds.size < np.iinfo(np.int32).max else np.int64
-    base = (((first + np.arange(n_p)) * h + start[:, 1]) * w + start[:, 0]).astype(index_type)
+    base: NDArray[np.integer[Any]] = (((first + np.arange(n_p)) * h + start[:, 1]) * w + start[:, 0]).astype(index_type)
     return _Lines(start=start, steps=steps, slope=slope, base=base, shape=(h, w))
 
 
@@ -113,7 +116,7 @@ def _to_cell(v: NDArray[np.float64], origin: float, resolution: float) -> NDArra
     return np.floor((v - origin) / resolution).astype(np.int64)
 
 
-def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer]) -> NDArray[np.integer]:
+def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer[Any]]) -> NDArray[np.integer[Any]]:
     """out (n, M, K): flat index of every step of lines that lie inside the grid."""
     k = np.arange(out.shape[2], dtype=np.float32)
     fx = np.multiply(lines.slope[..., 0, None], k, out=scratch("raycast_fx", out.shape, np.float32))
@@ -123,7 +126,7 @@ def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer]) -> NDArray[np.
     fy *= np.float32(w)
     fx += fy  # exact: |value| < 2**24
     np.copyto(out, fx, casting="unsafe")
-    out += lines.base[:, None, None]
+    np.add(out, lines.base[:, None, None], out=out)
     return out
 
 
@@ -176,8 +179,7 @@ def expected_ranges(grid: GridMaps, rays: Rays, min_range: float = 0.0) -> NDArr
 
 
 def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
-                   hit_step: NDArray[np.int64], *, first_step: NDArray[np.int64],
-                   l_free: int, l_occ: int, l_min: int, l_max: int) -> None:
+                   hit_step: NDArray[np.int64], *, first_step: NDArray[np.int64], steps: LogOddsSteps) -> None:
     """Applies one scan to the traced particles' grids, each cell at most once.
 
     Args:
@@ -185,14 +187,14 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
         hit_step: (n, M) step of the cell the beam ended in, -1 for no hit; it becomes
             more occupied, and only occupied, even if another beam crossed it.
         first_step: (n, M) steps before it (the sensor's minimum range) are left alone.
-        l_free, l_occ, l_min, l_max: increments and clamps in the grid's int8 units.
+        steps: increments and clamps in the grid's int8 units.
     """
     free, hit = _cells_to_update(rays, free_until, hit_step, first_step)
-    _apply(grid, free, hit, l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max)
+    _apply(grid, free, hit, steps)
 
 
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
-                     first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer], NDArray[np.integer]]:
+                     first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer[Any]], NDArray[np.integer[Any]]]:
     """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
     free = _free_of(rays.flat, free_until, first_step, valid=None if rays.inside else rays.flat >= 0)
     has_hit = hit_step >= 0
@@ -200,8 +202,8 @@ def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArra
     return free, hit[has_hit & (hit >= 0)]
 
 
-def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], *,
-           l_free: int, l_occ: int, l_min: int, l_max: int) -> None:
+def _apply(grid: GridMaps, free: NDArray[np.integer[Any]], hit: NDArray[np.integer[Any]], steps: LogOddsSteps) -> None:
+    l_free, l_occ, l_min, l_max = steps
     cells = grid.logodds.reshape(-1)
     lo, hi = np.iinfo(cells.dtype).min, np.iinfo(cells.dtype).max
     if l_free <= 0 <= l_occ and l_min <= l_max and lo <= l_min - l_free <= hi and lo <= l_max - l_occ <= hi:
@@ -227,12 +229,20 @@ def _apply(grid: GridMaps, free: NDArray[np.integer], hit: NDArray[np.integer], 
     cells[hit] = np.clip(before + l_occ, l_min, l_max)
 
 
-def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
-                     ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
-                     max_range: float, range_min: float, groups: int, free_step: int,
-                     l_units: dict[str, int]) -> None:
-    """The grid update of observe without expected ranges: beams are traced in groups
-    of similar length, each only as far as its longest beam reaches, not to max_range."""
+def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,
+                   steps: LogOddsSteps, *, max_range: float, groups: int, free_step: int = 1) -> None:
+    """The grid update of observe without expected ranges (faster): beams are traced in
+    groups of similar length, each only as far as its longest beam reaches, not to
+    max_range (the cells of a beam's line then depend on its group's length).
+
+    Args:
+        origins: (N, 2) beam origins; angles: (N, M) beam directions, map frame.
+        beams: the M beams (ranges, hits, the range each clears).
+        groups: number of groups of beams of similar length.
+        free_step: only every free_step-th beam (in angle) clears free space; the
+            others only mark the cell of their end point.
+    """
+    ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
     reach = np.where(hit, ranges, free_range)
     order = np.argsort(reach, kind="stable")
@@ -261,13 +271,13 @@ def _observe_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArr
             ok = (cell[..., 0] >= 0) & (cell[..., 0] < w_) & (cell[..., 1] >= 0) & (cell[..., 1] < h_)
             flat = ((np.arange(a, b)[:, None] * h_ + cell[..., 1]) * w_ + cell[..., 0])[ok]
             hit_cells.append(flat)
-        _apply(grid, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), **l_units)
+        _apply(grid, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), steps)
 
 
 def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
                  parts: list[NDArray[np.intp]], reach: NDArray[np.float64], ranges: NDArray[np.float64],
                  hit: NDArray[np.bool_], free_range: NDArray[np.float64], *, max_range: float,
-                 range_min: float, first: int) -> tuple[NDArray[np.intp], list[NDArray[np.integer]]]:
+                 range_min: float, first: int) -> tuple[NDArray[np.intp], list[NDArray[np.integer[Any]]]]:
     """The cells to free (one intp array, repeats allowed) and the hit cells (per group)
     of the beam groups `parts` for particles first .. first + n - 1."""
     # All groups at once, each beam with its group's length: the same values as group
@@ -299,8 +309,8 @@ def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[n
     return np.concatenate(free, out=out), hit_cells
 
 
-def _free_of(flat: NDArray[np.integer], until: NDArray[np.int64], first_step: NDArray[np.int64],
-             valid: NDArray[np.bool_] | None = None) -> NDArray[np.integer]:
+def _free_of(flat: NDArray[np.integer[Any]], until: NDArray[np.int64], first_step: NDArray[np.int64],
+             valid: NDArray[np.bool_] | None = None) -> NDArray[np.integer[Any]]:
     """The cells of steps first_step <= k < until of flat (n, M, K), where valid."""
     # Row u of the table is the mask k < u: one row copied per beam, cheaper than a
     # comparison broadcast over every step ("clip" clips u to 0 .. K).
@@ -321,33 +331,21 @@ def _prefix_masks(k_max: int) -> NDArray[np.bool_]:
     return table
 
 
-def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
-            ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
-            max_range: float, range_min: float, expected: bool,
-            l_free: int, l_occ: int, l_min: int, l_max: int, trim_groups: int = 0,
-            free_step: int = 1) -> NDArray[np.float64] | None:
-    """Expected scan from each particle's map as it was, then the scan written into it.
+def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,
+            steps: LogOddsSteps, *, max_range: float, expected: bool) -> NDArray[np.float64] | None:
+    """Expected scan from each particle's map as it was, then the scan written into it,
+    every beam traced to max_range.
 
     Runs over particles in chunks so the (n, M, K) temporaries stay small and in cache.
 
     Args:
         origins: (N, 2) beam origins; angles: (N, M) beam directions, map frame.
-        ranges: (M,) measured ranges; hit: (M,) beams that end in an obstacle;
-        free_range: (M,) distance each beam clears, 0 for none [m].
+        beams: the M beams (ranges, hits, the range each clears, the sensor's minimum).
         expected: whether to compute the expected ranges.
-        trim_groups: without expected ranges, > 0 traces the beams in this many groups
-            of similar length, each group only as far as its longest beam (faster; the
-            cells of a beam's line then depend on its group's length).
-        free_step: with trim_groups, only every free_step-th beam clears free space;
-            the others only mark the cell of their end point.
     Returns:
         (N, M) expected ranges, or None.
     """
-    if trim_groups > 0 and not expected:
-        _observe_trimmed(grid, origins, angles, ranges, hit, free_range, max_range=max_range,
-                         range_min=range_min, groups=trim_groups, free_step=free_step,
-                         l_units=dict(l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max))
-        return None
+    ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
     k_guess = int(max_range / grid.resolution) + 2
     per_chunk = max(1, CHUNK_ELEMENTS // (m * k_guess))
@@ -360,6 +358,5 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
         hit_step = np.where(hit, rays.step_of_range(ranges), -1)
         until = np.where(hit, hit_step, rays.step_of_range(free_range) + 1)
         until = np.where(free_range > 0, until, 0)
-        update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min),
-                       l_free=l_free, l_occ=l_occ, l_min=l_min, l_max=l_max)
+        update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min), steps=steps)
     return out

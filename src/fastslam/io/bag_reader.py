@@ -1,4 +1,4 @@
-"""ROS 1 bags without ROS: read scans, odometry and the laser mounting; write test bags.
+"""ROS 1 bags without ROS: read scans, odometry and the laser mounting.
 
 Uses ``rosbags`` (pure Python), imported lazily so that the rest of ``fastslam``
 works without it. Times are header stamps in seconds (float); poses are 2D.
@@ -10,51 +10,21 @@ import os
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any, Iterator
 
 import numpy as np
 from numpy.typing import NDArray
 
-from fastslam.io.transforms import LaserMount, StaticTransform, mount_from_matrix, transform_matrix
+from fastslam.io.records import ROSBAGS_HINT, BagError, OdomRecord, ScanRecord
+from fastslam.transforms import LaserMount, mount_from_matrix, transform_matrix
 
-__all__ = ["BagData", "BagError", "LaserMount", "OdomRecord", "ScanRecord", "StaticTransform",
-           "laser_mount", "read_bag", "write_bag"]
+__all__ = ["BagData", "BagError", "OdomRecord", "ScanRecord", "laser_mount", "read_bag"]
 
 log = logging.getLogger(__name__)
 
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
-_INSTALL_HINT = "reading/writing bags needs rosbags>=0.10: .venv/bin/pip install 'rosbags>=0.10'"
-
-
-class BagError(RuntimeError):
-    """The bag is missing, unreadable, or its topics do not say which to use."""
-
-
-@dataclass(frozen=True)
-class ScanRecord:
-    """A laser scan: ranges (M,) float32 [m] in ``frame_id``; beam i at angle_min + i*angle_increment."""
-
-    t: float
-    ranges: NDArray[np.float32]
-    angle_min: float
-    angle_increment: float
-    range_min: float
-    range_max: float
-    frame_id: str = "laser"
-
-
-@dataclass(frozen=True)
-class OdomRecord:
-    """Odometry pose of ``child_frame_id`` (the base frame) in ``frame_id`` (odom) [m, m, rad]."""
-
-    t: float
-    x: float
-    y: float
-    yaw: float
-    child_frame_id: str = "base_link"
-    frame_id: str = "odom"
 
 
 @dataclass
@@ -90,7 +60,7 @@ def _rosbags() -> tuple[Any, Any, Any]:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
     except ImportError as err:  # pragma: no cover - depends on the installation
-        raise BagError(_INSTALL_HINT) from err
+        raise BagError(ROSBAGS_HINT) from err
     return AnyReader, Stores, get_typestore
 
 
@@ -220,22 +190,3 @@ def laser_mount(edges: dict[tuple[str, str], NDArray[np.float64]], base_frame: s
                     base_frame, laser_frame)
         return mount_from_matrix(np.eye(4), base_frame, laser_frame, found=False)
     return mount_from_matrix(seen[laser_frame], base_frame, laser_frame, found=True)
-
-
-def write_bag(path: str | os.PathLike[str], scans: Iterable[ScanRecord], odoms: Iterable[OdomRecord], *,
-              static_transforms: Iterable[StaticTransform] = (), publish_tf: bool = True,
-              scan_topic: str = "/scan", odom_topic: str = "/odom") -> Path:
-    """Write a ROS 1 bag: LaserScan, Odometry, /tf (odom -> base per odometry message)
-    and latched /tf_static. Bag time = each message's stamp. ``path`` must not exist."""
-    from fastslam.io.bag_write import BagWriter
-
-    with BagWriter(path, scan_topic=scan_topic, odom_topic=odom_topic, publish_tf=publish_tf) as writer:
-        records: list[ScanRecord | OdomRecord] = [*odoms, *scans]
-        writer.static(list(static_transforms), t=min((r.t for r in records), default=0.0))
-        # stable sort with odometry first keeps "odometry before the scan of the same instant"
-        for rec in sorted(records, key=lambda r: r.t):
-            if isinstance(rec, ScanRecord):
-                writer.scan(rec)
-            else:
-                writer.odom(rec)
-    return Path(path)

@@ -29,6 +29,8 @@ from typing import IO, Iterator
 import numpy as np
 from numpy.typing import NDArray
 
+from fastslam.geometry import relative
+
 FLASER_MAX_RANGE = 81.83  # [m] SICK LMS "no return" reading in CARMEN logs
 
 
@@ -61,6 +63,12 @@ class LaserRecord:
     kind: str
     remissions: NDArray[np.float32] = field(default_factory=lambda: np.zeros(0, np.float32))
 
+    @property
+    def mount(self) -> tuple[float, float, float]:
+        """The laser's pose (x, y, yaw) on the robot, from the record's two poses."""
+        m = relative(self.robot_pose, self.laser_pose)
+        return float(m[0]), float(m[1]), float(m[2])
+
 
 @dataclass(frozen=True)
 class OdomLine:
@@ -85,6 +93,14 @@ class CarmenLog:
     def front_laser_offset(self) -> float:
         """Forward offset of the FLASER laser from the robot centre [m] (0 if not logged)."""
         return float(self.params.get("robot_frontlaser_offset", 0.0))
+
+    def laser_mount(self) -> tuple[float, float, float]:
+        """Laser pose on the robot (x, y, yaw): from ROBOTLASER1's two poses, else the
+        FLASER front-laser offset PARAM (0 when not logged)."""
+        for s in self.scans:
+            if s.kind == "ROBOTLASER1":
+                return s.mount
+        return self.front_laser_offset, 0.0, 0.0
 
 
 def _open_text(path: Path) -> IO[str]:

@@ -13,21 +13,20 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from . import raycast
-from .config import SlamConfig
-from .geometry import circular_mean, compose, cos_sin, wrap_angle
-from .grid import GridMaps
-from .motion import odometry_std, sample_motion_assignment, sample_motion_odometry
-from .resample import low_variance_indices, neff, slot_parents
-from .scan import Beams, Scan, select_beams
-from .weights import assignment_log_weights, likelihood_log_weights, normalise_log
+from fastslam.config import SlamConfig
+from fastslam.filter import raycast
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.history import History
+from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
+from fastslam.filter.resample import low_variance_indices, neff, slot_parents
+from fastslam.filter.scan import Beams, Scan, returns_subset, select_beams
+from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
+from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
+from fastslam.match import Match, MatchParams, match_poses
 
 # Likelihood weights need no expected ranges, so the map update traces each beam only
 # about as far as it reaches, in this many groups of beams of similar length.
 TRIM_GROUPS = 4
-
-
-PRUNE_EVERY = 256  # updates between prunings of the trajectory history
 
 
 @dataclass(frozen=True)
@@ -60,9 +59,8 @@ class FastSlam:
         self.grid = GridMaps(n, (h, w), cfg.map_resolution,
                              (-w * cfg.map_resolution / 2, -h * cfg.map_resolution / 2),
                              l_limit=max(-cfg.l_min, cfg.l_max))
-        g = self.grid
-        self._l_units = dict(l_free=g.quantise(cfg.l_free), l_occ=g.quantise(cfg.l_occ),
-                             l_min=g.quantise(cfg.l_min), l_max=g.quantise(cfg.l_max))
+        self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)
+        self._match_params = MatchParams.from_config(cfg)
         self.poses = np.zeros((n, 3))
         spread = np.array([cfg.init_sigma_xy, cfg.init_sigma_xy, cfg.init_sigma_theta])
         if np.any(spread > 0):
@@ -75,12 +73,9 @@ class FastSlam:
         self._predicted = self.poses.copy()          # noise-free motion of the last update
         self._motion_std = np.zeros(3)               # and its spread (match_prior: motion)
         self._stamp = -np.inf
-        self._hist_poses: list[NDArray[np.float64]] = []
-        self._hist_parent: list[NDArray[np.intp]] = []
-        self._hist_stamps: list[float] = []
-        self._trunk: list[NDArray[np.float64]] = []  # (k, 4) blocks t, x, y, theta of the one lineage left
+        self.history = History()
 
-    def rebase_odometry(self, odom: NDArray) -> None:
+    def rebase_odometry(self, odom: NDArray[np.float64]) -> None:
         """Takes odom as the new reference without moving the particles (after a jump)."""
         if self._odom is not None:
             self._odom = np.asarray(odom, dtype=np.float64)
@@ -90,11 +85,11 @@ class FastSlam:
         """(N,) normalised weights."""
         return normalise_log(self.log_w)
 
-    def step(self, odom: NDArray, scan: Scan) -> StepInfo:
+    def step(self, odom: NDArray[np.float64], scan: Scan) -> StepInfo:
         """One FastSLAM update with the odometry pose (3,) at the scan's time."""
         odom = np.asarray(odom, dtype=np.float64)
         first = self._odom is None
-        if not first and not self._due(odom, scan.stamp):
+        if not first and not self.due(odom, scan.stamp):
             return StepInfo(processed=False, neff=neff(self.weights), best=self.best)
         start = time.perf_counter()
         beams = select_beams(scan, self.cfg)
@@ -111,22 +106,24 @@ class FastSlam:
         w = self.weights
         self.best = int(np.argmax(w))
         n_eff = neff(w)
-        resampled = self._resample(w, n_eff)                    # 4. low-variance resampling
-        self._record(scan.stamp)
+        resampled, parent = self._resample(w, n_eff)            # 4. low-variance resampling
+        self.history.append(scan.stamp, self.poses, parent)
         self.updates += 1
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched)
 
     # -- the named steps -------------------------------------------------------------
-    def _anchor(self, odom: NDArray) -> None:
+    def _anchor(self, odom: NDArray[np.float64]) -> None:
         """First scan: the map frame is the odometry frame, the grid centred on the robot."""
         self.poses = compose(odom, self.poses)
         self.grid.origin = self.grid.origin + odom[:2]
 
-    def _due(self, odom: NDArray, stamp: float) -> bool:
-        """Gating: process after enough travel, turn or time (all zero: every scan)."""
+    def due(self, odom: NDArray[np.float64], stamp: float) -> bool:
+        """Gating: whether a scan at odometry pose odom (3,) and this stamp is processed:
+        after enough travel, turn or time since the last processed one (all zero: every scan)."""
         cfg = self.cfg
-        assert self._odom is not None
+        if self._odom is None:
+            return True
         if cfg.linear_update == 0 and cfg.angular_update == 0:
             return True
         moved = float(np.hypot(*(odom[:2] - self._odom[:2])))
@@ -134,7 +131,7 @@ class FastSlam:
         waited = cfg.temporal_update >= 0 and stamp - self._stamp >= cfg.temporal_update
         return moved >= cfg.linear_update or turned >= cfg.angular_update or waited
 
-    def _move(self, odom: NDArray) -> None:
+    def _move(self, odom: NDArray[np.float64]) -> None:
         cfg = self.cfg
         assert self._odom is not None
         if cfg.proposal == "scan_match" and cfg.match_prior == "motion":
@@ -145,9 +142,10 @@ class FastSlam:
                                 else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
         self._apply_motion(self.poses, odom, noise=bool(cfg.toggle_noise))
 
-    def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray, noise: bool) -> None:
+    def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray[np.float64], noise: bool) -> None:
         """Moves poses (N, 3) in place by the configured motion model, sampled or not."""
         cfg = self.cfg
+        assert self._odom is not None
         if cfg.motion_model == "assignment":
             sigmas = cfg.motion_sigmas if noise else np.zeros(3)  # zeros: no random draw
             sample_motion_assignment(poses, self._odom, odom, sigmas, self.rng)
@@ -167,99 +165,73 @@ class FastSlam:
 
     def _beam_frames(self, beams: Beams) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(N, 2) beam origins and (N, M) beam directions of every particle, map frame."""
-        p = self.poses
-        c, s = cos_sin(p[:, 2])
-        mx, my = beams.mount
-        origins = np.stack([p[:, 0] + c * mx - s * my, p[:, 1] + s * mx + c * my], axis=1)
-        return origins, p[:, 2, None] + beams.angles[None, :]
+        x, y = transform_points(self.poses, np.array([beams.mount], dtype=np.float64))
+        return np.concatenate([x, y], axis=1), self.poses[:, 2, None] + beams.angles[None, :]
 
     def _propose(self, beams: Beams) -> int:
-        from .scanmatch import refine_poses  # improved mode only
-
+        """Moves each particle whose scan match is trusted to a sample around the match."""
         prior = (self._predicted, self._motion_std) if self.cfg.match_prior == "motion" else None
-        return int(refine_poses(self, beams, prior=prior).sum())
+        match = match_poses(self.grid, self.poses, beams, self._match_params, prior=prior)
+        if match.trusted.any():
+            self._sample_around(match)
+        return int(match.trusted.sum())
+
+    def _sample_around(self, match: Match) -> None:
+        """Trusted particles take a sample around their match: with the match's covariance,
+        or the fixed match_sigma_*.
+
+        The fixed spread is the default: one taken from the posterior of the cell-level
+        search (often a few cm) blurred the maps and doubled the Intel ATE. The ICP's
+        covariance is narrow across surfaces and wide only along them.
+        """
+        cfg = self.cfg
+        z = self.rng.normal(0.0, 1.0, (len(match.poses), 3))
+        if match.covariance is None:
+            sample = match.poses + z * np.array([cfg.match_sigma_xy, cfg.match_sigma_xy, cfg.match_sigma_theta])
+        else:
+            sample = match.poses + (cholesky3(match.covariance) * z[:, None, :]).sum(axis=2)  # L z
+        sample[:, 2] = wrap_angle(sample[:, 2])
+        self.poses[match.trusted] = sample[match.trusted]
 
     def _observe(self, beams: Beams) -> None:
         """Weighs every particle against its map before this scan, then writes the scan in."""
         cfg = self.cfg
         weigh = bool(beams.hit.any())  # with no return to compare, weights stay as they are
         log_w = None
-        if weigh and cfg.weight_model == "likelihood":
-            from .scanmatch import endpoint_distances, returns_subset
-
-            sub = returns_subset(beams, cfg.match_beams)  # the matcher's end points
-            dist = endpoint_distances(self.grid, self.poses, sub, max_dist=cfg.likelihood_max_dist)
-            log_w = likelihood_log_weights(dist, sub.hit, cfg.likelihood_sigma,
-                                           cfg.likelihood_max_dist, cfg.likelihood_gain)
         origins, angles = self._beam_frames(beams)
-        d = raycast.observe(self.grid, origins, angles, beams.ranges, beams.hit, beams.free_range,
-                            max_range=cfg.max_range, range_min=beams.range_min,
-                            expected=weigh and cfg.weight_model == "assignment", **self._l_units,
-                            trim_groups=TRIM_GROUPS if cfg.weight_model == "likelihood" else 0,
-                            free_step=cfg.free_beam_step)
-        if d is not None:
-            log_w = assignment_log_weights(d, beams.ranges, beams.hit)
+        if cfg.weight_model == "likelihood":
+            if weigh:
+                sub = returns_subset(beams, cfg.match_beams)  # the matcher's end points
+                dist = endpoint_distances(self.grid, self.poses, sub, max_dist=cfg.likelihood_max_dist)
+                log_w = likelihood_log_weights(dist, sub.hit, cfg.likelihood_sigma,
+                                               cfg.likelihood_max_dist, cfg.likelihood_gain)
+            raycast.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
+                                   groups=TRIM_GROUPS, free_step=cfg.free_beam_step)
+        else:
+            d = raycast.observe(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
+                                expected=weigh)
+            if d is not None:
+                log_w = assignment_log_weights(d, beams.ranges, beams.hit)
         if log_w is not None:
             self.log_w = self.log_w + log_w
             self.log_w -= self.log_w.max()  # only differences matter; keep them small
 
-    def _resample(self, w: NDArray[np.float64], n_eff: float) -> bool:
+    def _resample(self, w: NDArray[np.float64], n_eff: float) -> tuple[bool, NDArray[np.intp]]:
+        """Low-variance resampling when due; returns whether, and each slot's parent slot."""
         n = len(w)
         if self.cfg.resample_threshold < 1.0 and n_eff >= self.cfg.resample_threshold * n:
-            self._hist_parent.append(np.arange(n))
-            return False
+            return False, np.arange(n)
         parent = slot_parents(low_variance_indices(w, self.rng))
         self.poses = self.poses[parent]
         self.grid.reorder(parent)
         self.log_w = np.zeros(n)
-        self._hist_parent.append(parent)
-        return True
-
-    def _record(self, stamp: float) -> None:
-        self._hist_poses.append(self.poses.copy())
-        self._hist_stamps.append(float(stamp))
-        if len(self._hist_poses) % PRUNE_EVERY == 0:
-            self._prune_history()
-
-    def _prune_history(self) -> None:
-        """Drops history no living particle descends from (gmapping prunes its tree too).
-
-        Lineages merge within a few resamplings, so what is left is about one path:
-        memory then grows by one pose per update instead of N.
-        """
-        keep = np.arange(len(self.poses))  # rows of step t that living particles descend from
-        for t in range(len(self._hist_poses) - 1, -1, -1):
-            rows = np.unique(keep)
-            new_row = np.full(len(self._hist_poses[t]), -1, dtype=np.intp)
-            new_row[rows] = np.arange(len(rows))
-            if t + 1 < len(self._hist_parent):
-                self._hist_parent[t + 1] = new_row[self._hist_parent[t + 1]]
-            if len(self._hist_poses[t]) == 1:
-                break  # a single lineage already: an earlier pruning compacted all before it
-            keep = self._hist_parent[t][rows]
-            self._hist_poses[t] = self._hist_poses[t][rows]
-            self._hist_parent[t] = keep
-        # The steps every living particle shares move into one compact block.
-        shared = next((t for t, rows in enumerate(self._hist_poses) if len(rows) > 1), len(self._hist_poses))
-        shared = min(shared, len(self._hist_poses) - 1)  # the newest step keeps its N slots
-        if shared > 0:
-            block = np.concatenate([np.array(self._hist_stamps[:shared])[:, None],
-                                    np.concatenate(self._hist_poses[:shared])], axis=1)
-            self._trunk.append(block)
-            del self._hist_poses[:shared], self._hist_parent[:shared], self._hist_stamps[:shared]
+        return True, parent
 
     # -- results ---------------------------------------------------------------------
     def trajectory(self, particle: int | None = None) -> NDArray[np.float64]:
         """(T, 4) rows t, x, y, theta: the path of a particle (default the best) through
         every processed scan, following its ancestors back through resampling."""
-        j = self.best if particle is None else int(particle)
-        t_len = len(self._hist_poses)
-        out = np.empty((t_len, 4))
-        for t in range(t_len - 1, -1, -1):
-            out[t, 0] = self._hist_stamps[t]
-            out[t, 1:] = self._hist_poses[t][j]
-            j = int(self._hist_parent[t][j])
-        return np.concatenate(self._trunk + [out]) if self._trunk else out
+        return self.history.path(self.best if particle is None else int(particle))
 
     def mean_pose(self) -> NDArray[np.float64]:
         """(3,) weighted mean pose, circular mean for the heading."""

@@ -5,10 +5,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from .config import SlamConfig
-from .geometry import wrap_angle
+from fastslam.config import SlamConfig
+from fastslam.geometry import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -30,7 +30,7 @@ class Scan:
     stamp: float = 0.0
 
     @classmethod
-    def from_laser(cls, ranges: NDArray, angle_min: float, angle_increment: float,
+    def from_laser(cls, ranges: ArrayLike, angle_min: float, angle_increment: float,
                    range_min: float, range_max: float, *, mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                    upside_down: bool = False, stamp: float = 0.0) -> Scan:
         """From LaserScan fields; mount = (x, y, yaw) of the laser in the base frame.
@@ -105,3 +105,26 @@ def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
     free[no_return] = min(cfg.no_return_range, cfg.max_range)
     return Beams(angles=scan.angles[keep], ranges=np.where(ok, z, np.inf), hit=hit,
                  free_range=free, range_min=scan.range_min, mount=scan.mount)
+
+
+def spread_returns(beams: Beams, count: int) -> NDArray[np.intp]:
+    """Indices of at most count returns (beams.hit), evenly spread over the scan."""
+    sel = np.flatnonzero(beams.hit)
+    if len(sel) <= count:
+        return sel
+    return sel[np.unique(np.linspace(0, len(sel) - 1, count).astype(np.intp))]
+
+
+def returns_subset(beams: Beams, count: int) -> Beams:
+    """The beams of at most count returns, evenly spread: the end points the matcher
+    uses, and the likelihood weight with them (an end point costs a 2-D search)."""
+    sel = spread_returns(beams, count)
+    return Beams(angles=beams.angles[sel], ranges=beams.ranges[sel], hit=beams.hit[sel],
+                 free_range=beams.free_range[sel], range_min=beams.range_min, mount=beams.mount)
+
+
+def end_points(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
+    """(M, 2) end points of the selected beams in the robot frame [m]."""
+    r = beams.ranges[sel]
+    a = beams.angles[sel]
+    return np.stack([beams.mount[0] + r * np.cos(a), beams.mount[1] + r * np.sin(a)], axis=1)

@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fastslam.geometry import inverse, transform_points
+
 UNKNOWN_RGB = (205, 205, 205)
 FREE_RGB = (255, 255, 255)
 OCCUPIED_RGB = (0, 0, 0)
@@ -88,14 +90,12 @@ def draw_polyline(img: NDArray[np.uint8], pixels_xy: ArrayLike, color: tuple[int
     img[rows[inside], cols[inside]] = color
 
 
-def world_to_pixels(xy: ArrayLike, shape: tuple[int, int], resolution: float,
+def world_to_pixels(xy: ArrayLike, shape: tuple[int, ...], resolution: float,
                     origin: tuple[float, float, float], scale: int) -> NDArray[np.float64]:
     """(T, 2) map-frame points -> (T, 2) (column, row) coords in a picture of grid ``shape``."""
     pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    c, s = np.cos(origin[2]), np.sin(origin[2])
-    dx, dy = pts[:, 0] - origin[0], pts[:, 1] - origin[1]
-    gx = (c * dx + s * dy) / resolution      # grid coordinates in cells (rotate into the grid)
-    gy = (-s * dx + c * dy) / resolution
+    gx, gy = transform_points(inverse(origin), pts)   # into the grid's frame
+    gx, gy = gx / resolution, gy / resolution           # [cells]
     return np.stack([gx * scale, (shape[0] - gy) * scale], axis=1)
 
 

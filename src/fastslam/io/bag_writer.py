@@ -9,14 +9,12 @@ import math
 import os
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Any
+from typing import Any, Iterable
 
 import numpy as np
 
-from fastslam.io.transforms import StaticTransform
-
-if TYPE_CHECKING:
-    from fastslam.io.bag import OdomRecord, ScanRecord
+from fastslam.io.records import ROSBAGS_HINT, BagError, OdomRecord, ScanRecord
+from fastslam.transforms import StaticTransform
 
 _TF_DEF = "geometry_msgs/TransformStamped[] transforms"
 
@@ -30,14 +28,11 @@ class BagWriter:
 
     def __init__(self, path: str | os.PathLike[str], *, scan_topic: str = "/scan",
                  odom_topic: str = "/odom", publish_tf: bool = True) -> None:
-        from fastslam.io.bag import BagError
-
         try:
             from rosbags.rosbag1 import Writer
             from rosbags.typesys import Stores, get_types_from_msg, get_typestore
         except ImportError as err:  # pragma: no cover - depends on the installation
-            from fastslam.io.bag import _INSTALL_HINT
-            raise BagError(_INSTALL_HINT) from err
+            raise BagError(ROSBAGS_HINT) from err
         self.path = Path(path)
         if self.path.exists():
             raise BagError(f"{self.path} exists; rosbag1 writers only create new bags")
@@ -134,3 +129,20 @@ class BagWriter:
         msg = self.t["tf2_msgs/msg/TFMessage"](transforms=[
             self._transform(t, s.parent, s.child, s.translation, s.rotation) for s in transforms])
         self._write("/tf", t, msg, "tf2_msgs/msg/TFMessage")
+
+
+def write_bag(path: str | os.PathLike[str], scans: Iterable[ScanRecord], odoms: Iterable[OdomRecord], *,
+              static_transforms: Iterable[StaticTransform] = (), publish_tf: bool = True,
+              scan_topic: str = "/scan", odom_topic: str = "/odom") -> Path:
+    """Write a ROS 1 bag: LaserScan, Odometry, /tf (odom -> base per odometry message)
+    and latched /tf_static. Bag time = each message's stamp. ``path`` must not exist."""
+    with BagWriter(path, scan_topic=scan_topic, odom_topic=odom_topic, publish_tf=publish_tf) as writer:
+        records: list[ScanRecord | OdomRecord] = [*odoms, *scans]
+        writer.static(list(static_transforms), t=min((r.t for r in records), default=0.0))
+        # stable sort with odometry first keeps "odometry before the scan of the same instant"
+        for rec in sorted(records, key=lambda r: r.t):
+            if isinstance(rec, ScanRecord):
+                writer.scan(rec)
+            else:
+                writer.odom(rec)
+    return Path(path)

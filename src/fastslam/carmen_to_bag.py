@@ -1,27 +1,30 @@
-"""CARMEN log -> ROS 1 bag (/scan, /odom, /tf, /tf_static) plus the reference trajectory.
+"""Convert a CARMEN log into a ROS 1 bag for the offline SLAM.
 
-One odometry message (and one odom -> base_link tf) is written per scan, at the scan's
-logger timestamp. The odometry is the log's robot pose re-integrated with the noise
-model of :mod:`fastslam.io.odom_noise` (level 0 = the log's poses); the log's poses
-themselves go to ``<bag>.gt.txt`` as the reference trajectory, the odometry to
-``<bag>.odom.txt``.
+    python -m fastslam.carmen_to_bag LOG --out BAG [--odom-noise LEVEL --seed N] [--max-range R] [--limit K]
+
+Writes BAG (/scan, /odom, /tf, /tf_static), BAG.gt.txt (the log's poses, ``t x y
+theta``) and BAG.odom.txt (the odometry). The odometry re-integrates the logged
+motion with the noise model of :mod:`fastslam.sim.odometry_noise` scaled by LEVEL
+(0 = the logged poses).
 """
 from __future__ import annotations
 
+import argparse
 import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from fastslam.geometry import relative
-from fastslam.io.bag import OdomRecord, ScanRecord
-from fastslam.io.bag_write import BagWriter
-from fastslam.io.carmen import CarmenLog
-from fastslam.io.odom_noise import DEFAULT_ALPHAS, OdomNoise, noisy_odometry
-from fastslam.io.trajectory import write_trajectory
-from fastslam.io.transforms import StaticTransform
+from fastslam.eval.trajectory import ate
+from fastslam.io.bag_writer import BagWriter
+from fastslam.io.carmen_log import CarmenError, CarmenLog, read_log
+from fastslam.io.records import BagError, OdomRecord, ScanRecord
+from fastslam.io.trajectory_files import write_trajectory
+from fastslam.sim.odometry_noise import DEFAULT_ALPHAS, OdomNoise, noisy_odometry
+from fastslam.transforms import StaticTransform
 
 
 @dataclass(frozen=True)
@@ -65,16 +68,6 @@ def log_trajectory(log: CarmenLog) -> tuple[NDArray[np.float64], NDArray[np.floa
     return times, poses
 
 
-def log_mount(log: CarmenLog) -> tuple[float, float, float]:
-    """Laser pose on the robot (x, y, yaw): from ROBOTLASER1's two poses, else the
-    FLASER front-laser offset PARAM (0 when not logged)."""
-    for s in log.scans:
-        if s.kind == "ROBOTLASER1":
-            m = relative(s.robot_pose, s.laser_pose)
-            return float(m[0]), float(m[1]), float(m[2])
-    return log.front_laser_offset, 0.0, 0.0
-
-
 def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 0.0, seed: int = 0,
             alphas: OdomNoise = DEFAULT_ALPHAS, odom_frame: str = "odom", base_frame: str = "base_link",
             laser_frame: str = "laser") -> Conversion:
@@ -90,7 +83,7 @@ def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 
         raise ValueError("the log has no FLASER or ROBOTLASER1 scans")
     times, truth = log_trajectory(log)
     odometry = noisy_odometry(truth, odom_noise, np.random.default_rng(seed), alphas)
-    mount = log_mount(log)
+    mount = log.laser_mount()
     out = Path(out)
     with BagWriter(out) as writer:
         writer.static([StaticTransform.planar(base_frame, laser_frame, *mount)], t=float(times[0]))
@@ -105,3 +98,35 @@ def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 
     write_trajectory(reference_path(out, "odom"), times, odometry, comment=f"odometry in {out.name}\n{comment}")
     return Conversion(bag=out, reference=ref, scans=len(times), mount=mount, times=times,
                       truth=truth, odometry=odometry)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m fastslam.carmen_to_bag", description=__doc__.split("\n")[0])
+    ap.add_argument("log", help="CARMEN log, plain or gzip")
+    ap.add_argument("--out", required=True, help="bag to create (must not exist)")
+    ap.add_argument("--odom-noise", type=float, default=0.0, metavar="LEVEL",
+                    help="odometry noise multiplier (0 = exact, 1 = the documented model)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the odometry noise")
+    ap.add_argument("--max-range", type=float, default=None, metavar="R",
+                    help="readings >= R [m] are no returns (FLASER default 81.83)")
+    ap.add_argument("--limit", type=int, default=None, help="convert only the first K scans")
+    args = ap.parse_args(argv)
+    try:
+        log = read_log(args.log, max_range=args.max_range, limit=args.limit)
+        result = convert(log, args.out, odom_noise=args.odom_noise, seed=args.seed)
+    except (OSError, CarmenError, BagError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    duration = float(result.times[-1] - result.times[0]) if result.scans > 1 else 0.0
+    drift = ate(result.truth, result.odometry)
+    end = float(np.hypot(*(result.truth[-1, :2] - result.odometry[-1, :2])))
+    print(f"{result.scans} scans over {duration:.1f} s -> {result.bag}\n"
+          f"reference trajectory -> {result.reference}\n"
+          f"laser mount (x, y, yaw) = {result.mount}\n"
+          f"odometry noise level {args.odom_noise} seed {args.seed}: "
+          f"dead-reckoning ATE {drift:.3f} m, final position error {end:.3f} m")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

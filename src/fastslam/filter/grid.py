@@ -9,27 +9,22 @@ limits set the scale, so l_min..l_max always fit in -127..127.
 from __future__ import annotations
 
 import math
-import threading
+from typing import Any, NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 LOGODDS_DTYPE = np.int8
 QMAX = 127
 
-_scratch = threading.local()
 
+class LogOddsSteps(NamedTuple):
+    """The map update's increments and clamps in a grid's int8 units."""
 
-def scratch(key: str, shape: tuple[int, ...], dtype: type | np.dtype) -> NDArray:
-    """A work array of this shape, contents undefined, reused by the next call with
-    the same key (per thread): a large temporary allocated afresh every scan costs a
-    page fault per 4 KiB page, which in a VM costs more than the arithmetic on it."""
-    arrays = _scratch.__dict__.setdefault("arrays", {})
-    size = math.prod(shape)
-    buf = arrays.get(key)
-    if buf is None or buf.dtype != dtype or buf.size < size:
-        buf = arrays[key] = np.empty(size + size // 4, dtype)  # headroom: sizes vary a little
-    return buf[:size].reshape(shape)
+    free: int   # added to a cell a beam crosses (< 0)
+    occ: int    # added to the cell a beam ends in (> 0)
+    lo: int     # clamps
+    hi: int
 
 
 class GridMaps:
@@ -55,6 +50,10 @@ class GridMaps:
         q = int(np.clip(np.rint(value / self.scale), -QMAX, QMAX))
         return q if q != 0 else int(np.sign(value))
 
+    def steps(self, l_free: float, l_occ: float, l_min: float, l_max: float) -> LogOddsSteps:
+        """Log-odds increments and clamps in grid units."""
+        return LogOddsSteps(self.quantise(l_free), self.quantise(l_occ), self.quantise(l_min), self.quantise(l_max))
+
     @property
     def shape(self) -> tuple[int, int]:
         return self.logodds.shape[1], self.logodds.shape[2]
@@ -66,11 +65,11 @@ class GridMaps:
         x0, y0 = self.origin
         return x0, y0, x0 + w * self.resolution, y0 + h * self.resolution
 
-    def world_to_cell(self, xy: NDArray) -> NDArray[np.int64]:
+    def world_to_cell(self, xy: ArrayLike) -> NDArray[np.int64]:
         """(..., 2) world points -> (..., 2) integer (ix, iy), possibly outside the grid."""
         return np.floor((np.asarray(xy) - self.origin) / self.resolution).astype(np.int64)
 
-    def cell_to_world(self, ixy: NDArray) -> NDArray[np.float64]:
+    def cell_to_world(self, ixy: ArrayLike) -> NDArray[np.float64]:
         """(..., 2) integer (ix, iy) -> (..., 2) world coordinates of the cell centres."""
         return self.origin + (np.asarray(ixy) + 0.5) * self.resolution
 
@@ -129,7 +128,7 @@ class GridMaps:
         return np.count_nonzero(self.logodds.reshape(len(self.logodds), -1), axis=1)
 
 
-def logodds_to_occupancy(logodds: NDArray, scale: float = 1.0) -> NDArray[np.int8]:
+def logodds_to_occupancy(logodds: NDArray[np.integer[Any]], scale: float = 1.0) -> NDArray[np.int8]:
     """Log-odds (any shape, times scale) -> int8 occupancy: -1 unknown (exactly 0), else 0..100."""
     p = 1.0 / (1.0 + np.exp(-logodds.astype(np.float64) * scale))
     occ = np.rint(p * 100.0).astype(np.int8)

@@ -6,7 +6,7 @@ from collections import deque
 import numpy as np
 from numpy.typing import NDArray
 
-from .geometry import wrap_angle
+from fastslam.geometry import wrap_angle
 
 
 class OdomBuffer:

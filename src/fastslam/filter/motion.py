@@ -1,13 +1,15 @@
 """Motion update of all particles at once (assignment 3.2, and a robot-frame option)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from .geometry import wrap_angle
+from fastslam.geometry import wrap_angle
 
 
-def odometry_step(prev_odom: NDArray, odom: NDArray) -> tuple[float, float]:
+def odometry_step(prev_odom: NDArray[np.float64], odom: NDArray[np.float64]) -> tuple[float, float]:
     """Signed travel dr and heading change dtheta between two odometry poses.
 
     The assignment's dr = sqrt(dx^2 + dy^2) cannot drive backwards; here dr takes the
@@ -19,8 +21,8 @@ def odometry_step(prev_odom: NDArray, odom: NDArray) -> tuple[float, float]:
     return dr, float(wrap_angle(odom[2] - prev_odom[2]))
 
 
-def sample_motion_assignment(poses: NDArray[np.float64], prev_odom: NDArray, odom: NDArray,
-                             sigmas: NDArray, rng: np.random.Generator) -> None:
+def sample_motion_assignment(poses: NDArray[np.float64], prev_odom: NDArray[np.float64], odom: NDArray[np.float64],
+                             sigmas: NDArray[np.float64], rng: np.random.Generator) -> None:
     """Moves poses (N, 3) in place by the assignment's model plus additive noise.
 
     x += dr cos(theta) + e_x,  y += dr sin(theta) + e_y,  theta += dtheta + e_theta;
@@ -36,7 +38,7 @@ def sample_motion_assignment(poses: NDArray[np.float64], prev_odom: NDArray, odo
     poses[:, 2] = wrap_angle(poses[:, 2])
 
 
-def _rot_trans_rot(prev_odom: NDArray, odom: NDArray) -> tuple[float, float, float]:
+def _rot_trans_rot(prev_odom: NDArray[np.float64], odom: NDArray[np.float64]) -> tuple[float, float, float]:
     """The odometry step as (rot1, trans, rot2), trans negative when reversing."""
     dx, dy = float(odom[0] - prev_odom[0]), float(odom[1] - prev_odom[1])
     trans = float(np.hypot(dx, dy))
@@ -47,24 +49,26 @@ def _rot_trans_rot(prev_odom: NDArray, odom: NDArray) -> tuple[float, float, flo
     return rot1, trans, rot2
 
 
-def _step_sigmas(rot1: float, trans: float, rot2: float, alphas: tuple[float, float, float, float]
-                 ) -> tuple[float, float, float]:
-    """Std-devs of rot1, trans, rot2 (gmapping's srr, srt, str, stt)."""
+def step_sigmas(rot1: ArrayLike, trans: ArrayLike, rot2: ArrayLike, alphas: tuple[float, float, float, float]
+                ) -> tuple[Any, Any, Any]:
+    """Std-devs of rot1, trans, rot2 (floats or arrays alike) under the odometry motion
+    model with alphas = (srr, srt, str, stt), gmapping's: translation noise from
+    translation and from rotation, rotation noise from translation and from rotation."""
     srr, srt, s_rt, stt = alphas
-    return (stt * abs(rot1) + s_rt * abs(trans), srr * abs(trans) + srt * (abs(rot1) + abs(rot2)),
-            stt * abs(rot2) + s_rt * abs(trans))
+    r1, tr, r2 = np.abs(rot1), np.abs(trans), np.abs(rot2)
+    return stt * r1 + s_rt * tr, srr * tr + srt * (r1 + r2), stt * r2 + s_rt * tr
 
 
-def odometry_std(prev_odom: NDArray, odom: NDArray, alphas: tuple[float, float, float, float]
+def odometry_std(prev_odom: NDArray[np.float64], odom: NDArray[np.float64], alphas: tuple[float, float, float, float]
                  ) -> NDArray[np.float64]:
     """(3,) std-devs of sample_motion_odometry's end pose for this step: along the
     direction of travel, across it [m], and of the heading [rad] (first order)."""
     rot1, trans, rot2 = _rot_trans_rot(prev_odom, odom)
-    s_rot1, s_trans, s_rot2 = _step_sigmas(rot1, trans, rot2, alphas)
+    s_rot1, s_trans, s_rot2 = step_sigmas(rot1, trans, rot2, alphas)
     return np.array([s_trans, abs(trans) * s_rot1, float(np.hypot(s_rot1, s_rot2))])
 
 
-def sample_motion_odometry(poses: NDArray[np.float64], prev_odom: NDArray, odom: NDArray,
+def sample_motion_odometry(poses: NDArray[np.float64], prev_odom: NDArray[np.float64], odom: NDArray[np.float64],
                            alphas: tuple[float, float, float, float], noise: bool,
                            rng: np.random.Generator) -> None:
     """Moves poses (N, 3) in place by rot1-trans-rot2 odometry (Probabilistic Robotics 5.4).
@@ -78,7 +82,7 @@ def sample_motion_odometry(poses: NDArray[np.float64], prev_odom: NDArray, odom:
     tr = np.full(n, trans)
     r2 = np.full(n, rot2)
     if noise:
-        s_rot1, s_trans, s_rot2 = _step_sigmas(rot1, trans, rot2, alphas)
+        s_rot1, s_trans, s_rot2 = step_sigmas(rot1, trans, rot2, alphas)
         r1 += rng.normal(0, 1, n) * s_rot1
         tr += rng.normal(0, 1, n) * s_trans
         r2 += rng.normal(0, 1, n) * s_rot2

@@ -7,7 +7,7 @@ that step (seeded). The matcher sees the same prior as in the filter (centred on
 erring prediction, or the window prior round the sample). Prints the bias and spread of matched - reference in the robot
 frame, which the filter's chaotic end results cannot show.
 
-    python -m fastslam.bench_matcher [intel|office] [--config config/real.yaml]
+    python -m bench.matcher [intel|office] [--config config/real.yaml]
         [--limit 400] [--set key=value]...
 """
 from __future__ import annotations
@@ -19,33 +19,32 @@ from typing import Iterator
 
 import numpy as np
 
-from .config import SlamConfig, parse_override
-from .geometry import compose, relative
-from .motion import odometry_std
-from .scan import Scan, select_beams
-from .scanmatch import refine_poses
-from .slam import FastSlam
+from bench.common import data_path
+from fastslam.config import SlamConfig, parse_override
+from fastslam.filter.motion import odometry_std
+from fastslam.filter.scan import Scan, select_beams
+from fastslam.filter.slam import FastSlam
+from fastslam.geometry import compose, relative
+from fastslam.match import MatchParams, match_poses
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(reference pose, scan) of the Intel log's FLASER records."""
-    from .bench_accuracy import INTEL_LOG
-    from .io.carmen import read_log
+    from fastslam.io.carmen_log import read_log
 
-    for rec in read_log(INTEL_LOG, limit=limit).scans:
-        mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
+    for rec in read_log(data_path("intel-corrected.log.gz"), limit=limit).scans:
         yield np.asarray(rec.robot_pose, dtype=float), Scan.from_laser(
             rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment, 0.0, rec.max_range,
-            mount=mount, stamp=rec.t)
+            mount=rec.mount, stamp=rec.t)
 
 
 def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(true pose, scan) of the simulator's office route, perfect odometry."""
-    from .bench_accuracy import LDS01
-    from .simrun import run
-    from .trajectory_metrics import match_by_time
+    from bench.modes import LDS01
+    from fastslam.eval.trajectory import match_by_time
+    from fastslam.simrun import run
 
     cfg = SlamConfig.from_dict({"proposal": "odometry", "toggle_noise": 0, "particles": 1, **LDS01})
     sim = run("office", cfg, seed=0, sim={"odom_noise": False}, record=True)
@@ -57,24 +56,24 @@ def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 
 def match_errors(cfg: SlamConfig, scans: Iterator[tuple[np.ndarray, Scan]], seed: int = 0) -> np.ndarray:
     """(K, 3) matched - reference (along, across [m], heading [rad]) of trusted matches."""
-    cfg = cfg.replace(particles=1, match_sigma_xy=0.0, match_sigma_theta=0.0, match_spread="fixed")
-    mapper = FastSlam(cfg.replace(proposal="odometry", toggle_noise=0))
+    # The map is written at the reference poses: one particle moved exactly by them.
+    mapper = FastSlam(cfg.replace(particles=1, proposal="odometry", motion_model="odometry", toggle_noise=0))
+    params = MatchParams.from_config(cfg)
     rng = np.random.default_rng(seed)
     alphas = (cfg.srr, cfg.srt, cfg.str, cfg.stt)
     out, last = [], None
     for pose, scan in scans:
-        if last is not None and not mapper._due(pose, scan.stamp):
+        if last is not None and not mapper.due(pose, scan.stamp):
             continue
         if last is not None:
             std = np.maximum(odometry_std(last, pose, alphas), 1e-9)
             predicted = compose(pose, rng.normal(0.0, 1.0, 3) * std)      # where odometry says
-            mapper.poses[:] = compose(predicted, rng.normal(0.0, 1.0, 3) * std)  # the particle's sample
+            sample = compose(predicted, rng.normal(0.0, 1.0, 3) * std)    # the particle's sample
             prior = (predicted[None], std) if cfg.match_prior == "motion" else None  # as FastSlam does
-            if refine_poses(mapper, select_beams(scan, cfg), prior=prior)[0]:
-                out.append(relative(pose, mapper.poses[0]))
-            mapper.poses[:] = last
+            match = match_poses(mapper.grid, sample[None], select_beams(scan, cfg), params, prior=prior)
+            if match.trusted[0]:
+                out.append(relative(pose, match.poses[0]))
         mapper.step(pose, scan)
-        mapper.poses[:] = pose  # the map is written at the reference pose
         last = pose
     return np.array(out).reshape(-1, 3)
 
@@ -84,7 +83,8 @@ def summary(err: np.ndarray) -> str:
     mm = 1000.0
     return (f"{len(err)} matches: bias along {mm * err[:, 0].mean():+.1f} mm, across {mm * err[:, 1].mean():+.1f} mm, "
             f"heading {mm * err[:, 2].mean():+.2f} mrad; RMS along {mm * np.sqrt(np.mean(err[:, 0] ** 2)):.1f} mm, "
-            f"across {mm * np.sqrt(np.mean(err[:, 1] ** 2)):.1f} mm, heading {mm * np.sqrt(np.mean(err[:, 2] ** 2)):.1f} "
+            f"across {mm * np.sqrt(np.mean(err[:, 1] ** 2)):.1f} mm, "
+            f"heading {mm * np.sqrt(np.mean(err[:, 2] ** 2)):.1f} "
             f"mrad; median {mm * np.median(xy):.1f} mm, > 10 cm {100 * np.mean(xy > 0.1):.1f} %")
 
 
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     overrides = dict(parse_override(s) for s in args.set)
     if args.data == "office":
-        from .bench_accuracy import LDS01
+        from bench.modes import LDS01
 
         overrides = {**LDS01, **overrides}
     cfg = SlamConfig.from_yaml(args.config, overrides)

@@ -1,12 +1,17 @@
 """Quality of a SLAM result against ground truth: trajectory error and map agreement."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import NDArray
 
-from .trajectory_metrics import match_by_time
+from fastslam.eval.trajectory import match_by_time
+from fastslam.geometry import inverse, transform_points
+from fastslam.io.map_files import OCCUPIED_MIN as OCCUPIED  # map_saver's occupied threshold [%]
 
-OCCUPIED = 65  # map_saver's occupied threshold, in OccupancyGrid percent
+if TYPE_CHECKING:
+    from fastslam.sim.world import World
 
 
 def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -19,9 +24,8 @@ def trajectory_errors(estimate: NDArray[np.float64], truth: NDArray[np.float64])
 
 def in_frame_of(pose: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.float64]:
     """(P, 2) world points seen from pose (3,): the map frame of a run that started there."""
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    d = np.asarray(points, dtype=float) - pose[:2]
-    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+    x, y = transform_points(inverse(pose), np.asarray(points, dtype=float).reshape(-1, 2))
+    return np.stack([x, y], axis=1)
 
 
 def nearest_distance(points: NDArray[np.float64], targets: NDArray[np.float64],
@@ -83,7 +87,7 @@ def map_quality(occupancy: NDArray[np.int8], resolution: float, origin: tuple[fl
     }
 
 
-def run_quality(world, estimate: NDArray[np.float64], truth: NDArray[np.float64], occupancy: NDArray[np.int8],
+def run_quality(world: World, estimate: NDArray[np.float64], truth: NDArray[np.float64], occupancy: NDArray[np.int8],
                 resolution: float, origin: tuple[float, float]) -> dict[str, float]:
     """Trajectory error and map agreement of a simulated run, all in the run's map frame.
 

@@ -8,15 +8,14 @@ unusable scans are dropped with a reason.
 from __future__ import annotations
 
 import re
-
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .odombuffer import OdomBuffer
-from .scan import Scan
-from .slam import FastSlam, StepInfo
+from fastslam.filter.odom_buffer import OdomBuffer
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam, StepInfo
 
 
 class Dropped(ValueError):

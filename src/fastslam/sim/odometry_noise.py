@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fastslam.filter.motion import step_sigmas
 from fastslam.geometry import wrap_angle
 
 
@@ -88,12 +89,8 @@ def noise_sigmas(deltas: ArrayLike, level: float, alphas: OdomNoise = DEFAULT_AL
     turn = tr < MIN_TRANS
     r1 = np.where(turn, 0.0, np.abs(d[:, 0]))
     r2 = np.where(turn, np.abs(wrap_angle(d[:, 0] + d[:, 2])), np.abs(d[:, 2]))
-    sigma = level * np.stack([
-        alphas.rot_per_rot * r1 + alphas.rot_per_trans * tr,
-        alphas.trans_per_trans * tr + alphas.trans_per_rot * (r1 + r2),
-        alphas.rot_per_rot * r2 + alphas.rot_per_trans * tr,
-    ], axis=1)
-    return sigma
+    model = (alphas.trans_per_trans, alphas.trans_per_rot, alphas.rot_per_trans, alphas.rot_per_rot)
+    return level * np.stack(step_sigmas(r1, tr, r2, model), axis=1)  # the filter's own law
 
 
 def perturb_deltas(deltas: ArrayLike, level: float, rng: np.random.Generator,

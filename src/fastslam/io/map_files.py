@@ -19,8 +19,10 @@ from numpy.typing import NDArray
 FREE_PIXEL = 254
 OCCUPIED_PIXEL = 0
 UNKNOWN_PIXEL = 205
-_FREE_MAX = 25        # [%] map_saver writes 254 for 0 <= v <= 25
-_OCCUPIED_MIN = 65    # [%] and 0 for v >= 65
+FREE_MAX = 25         # [%] map_saver writes 254 for 0 <= v <= 25
+OCCUPIED_MIN = 65     # [%] and 0 for v >= 65
+OCCUPIED_THRESH = 0.65  # map_server's reading rule: occupied above, free below FREE_THRESH
+FREE_THRESH = 0.196
 
 
 class MapSaveError(OSError):
@@ -41,8 +43,8 @@ def occupancy_to_pixels(occupancy: NDArray[np.integer[Any]]) -> NDArray[np.uint8
     """(H, W) OccupancyGrid values -> (H, W) uint8 PGM pixels, image row 0 = grid row H-1."""
     occ = np.asarray(occupancy)
     pixels = np.full(occ.shape, UNKNOWN_PIXEL, dtype=np.uint8)
-    pixels[(occ >= 0) & (occ <= _FREE_MAX)] = FREE_PIXEL
-    pixels[occ >= _OCCUPIED_MIN] = OCCUPIED_PIXEL
+    pixels[(occ >= 0) & (occ <= FREE_MAX)] = FREE_PIXEL
+    pixels[occ >= OCCUPIED_MIN] = OCCUPIED_PIXEL
     return pixels[::-1].copy()
 
 
@@ -90,7 +92,7 @@ def _atomic_write_all(files: list[tuple[Path, bytes]]) -> None:
 
 def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.integer[Any]],
              resolution: float, origin: tuple[float, float, float], *,
-             occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> tuple[Path, Path]:
+             occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH) -> tuple[Path, Path]:
     """Write ``<stem>.pgm`` and ``<stem>.yaml`` in map_server format.
 
     Args:
@@ -111,7 +113,7 @@ def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.in
         raise ValueError(f"occupancy must be (H, W), got shape {occ.shape}")
     pgm_path, yaml_path = _paths(path_stem_or_yaml)
     h, w = occ.shape
-    header = f"P5\n# CREATOR: fastslam.io.mapfile {resolution:.3f} m/pix\n{w} {h}\n255\n".encode("ascii")
+    header = f"P5\n# CREATOR: fastslam.io.map_files {resolution:.3f} m/pix\n{w} {h}\n255\n".encode("ascii")
     meta = {
         "image": pgm_path.name,       # relative, so the pair can be moved together
         "resolution": float(resolution),
@@ -173,15 +175,23 @@ def load_map(yaml_path: str | os.PathLike[str]) -> tuple[NDArray[np.int8], float
         image = yaml_path.parent / str(meta["image"])
         resolution = float(meta["resolution"])
         ox, oy, oyaw = (float(v) for v in meta["origin"])
-        occ_t = float(meta.get("occupied_thresh", 0.65))
-        free_t = float(meta.get("free_thresh", 0.196))
+        occ_t = float(meta.get("occupied_thresh", OCCUPIED_THRESH))
+        free_t = float(meta.get("free_thresh", FREE_THRESH))
         negate = bool(int(meta.get("negate", 0)))
         pixels = read_pgm(image)
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
         raise MapLoadError(f"cannot load map {yaml_path}: {err}") from err
-    v = pixels.astype(np.float64)
-    p = v / 255.0 if negate else (255.0 - v) / 255.0
-    occ = np.full(pixels.shape, -1, dtype=np.int8)
-    occ[p > occ_t] = 100
-    occ[p < free_t] = 0
+    occ = trinary(pixels, negate=negate, occupied_thresh=occ_t, free_thresh=free_t)
     return occ[::-1].copy(), resolution, (ox, oy, oyaw)
+
+
+def trinary(pixels: NDArray[np.integer[Any]], *, negate: bool, occupied_thresh: float = OCCUPIED_THRESH,
+            free_thresh: float = FREE_THRESH, maxval: int = 255) -> NDArray[np.int8]:
+    """map_server's trinary rule, pixel by pixel: p = (maxval - v) / maxval (v / maxval with
+    negate); p > occupied_thresh -> 100, p < free_thresh -> 0, else -1 (unknown)."""
+    v = pixels.astype(np.float64)
+    p = v / maxval if negate else (maxval - v) / maxval
+    occ = np.full(pixels.shape, -1, dtype=np.int8)
+    occ[p > occupied_thresh] = 100
+    occ[p < free_thresh] = 0
+    return occ

@@ -1,4 +1,5 @@
-"""A world from a map_server map (YAML + binary P5 PGM): occupied pixels become walls.
+"""Worlds from files: a world YAML (walls as polygons, segments, circles) or a
+map_server map (YAML + binary P5 PGM), whose occupied pixels become walls.
 
 Only the edges between an occupied pixel and a non-occupied one are kept, merged into
 runs along rows and columns, so a 384 x 384 map gives hundreds of segments, not
@@ -11,27 +12,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 
-from fastslam.io import mapfile
-from fastslam.io.mapfile import MapLoadError
-from fastslam.sim.world import World, WorldError
-
-def read_pgm(path: str | Path) -> tuple[NDArray[np.uint8], int]:
-    """Binary P5 PGM -> ((H, W) pixel values, row 0 = top row of the image; maxval 255).
-
-    The map-file reader parses it; here its errors become WorldErrors.
-    """
-    try:
-        return mapfile.read_pgm(path), 255
-    except (MapLoadError, OSError) as err:
-        raise WorldError(f"image: {err}") from None
-
-
-def occupied_mask(pixels: NDArray[Any], *, negate: bool, occupied_thresh: float, maxval: int = 255) -> NDArray[np.bool_]:
-    """map_server's trinary rule: p = (maxval - v) / maxval (negate flips), occupied if p > thresh."""
-    p = pixels.astype(float) / maxval if negate else (maxval - pixels.astype(float)) / maxval
-    return p > occupied_thresh
+from fastslam.geometry import transform_points
+from fastslam.io.map_files import MapLoadError, read_pgm, trinary
+from fastslam.sim.world import World, WorldError, world_from_dict
 
 
 def mask_segments(occ: NDArray[np.bool_], resolution: float, origin: tuple[float, float, float]) -> NDArray[np.float64]:
@@ -51,10 +37,8 @@ def mask_segments(occ: NDArray[np.bool_], resolution: float, origin: tuple[float
         for s, e in zip(np.flatnonzero(runs == 1), np.flatnonzero(runs == -1)):
             segs.append((i, s, i, e))
     cells = np.asarray(segs, dtype=float).reshape(-1, 2, 2) * resolution
-    c, s = math.cos(origin[2]), math.sin(origin[2])
-    x = origin[0] + c * cells[..., 0] - s * cells[..., 1]
-    y = origin[1] + s * cells[..., 0] + c * cells[..., 1]
-    return np.stack([x, y], axis=-1)
+    x, y = transform_points(origin, cells.reshape(-1, 2))
+    return np.stack([x, y], axis=-1).reshape(-1, 2, 2)
 
 
 def world_from_map_yaml(data: dict[str, Any], path: Path) -> World:
@@ -82,8 +66,11 @@ def world_from_map_yaml(data: dict[str, Any], path: Path) -> World:
     image = Path(str(data["image"]))
     if not image.is_absolute():
         image = path.parent / image
-    pixels, maxval = read_pgm(image)
-    occ = occupied_mask(pixels, negate=bool(data.get("negate", 0)), occupied_thresh=thresh, maxval=maxval)
+    try:
+        pixels = read_pgm(image)
+    except (MapLoadError, OSError) as err:
+        raise WorldError(f"image: {err}") from None
+    occ = trinary(pixels, negate=bool(data.get("negate", 0)), occupied_thresh=thresh) == 100
     if not occ.any():
         raise WorldError(f"{path.name}: image {image.name} has no occupied pixel")
     spawn = data.get("spawn", [0.0, 0.0, 0.0])
@@ -92,3 +79,20 @@ def world_from_map_yaml(data: dict[str, Any], path: Path) -> World:
     return World(segments=mask_segments(occ, res, (float(origin[0]), float(origin[1]), float(origin[2]))),
                   spawn=np.array([float(spawn[0]), float(spawn[1]), math.radians(float(spawn[2]))]),
                   name=path.stem)
+
+
+def load_world(path: str | Path) -> World:
+    """Reads a world YAML, or a map_server map YAML (it has an ``image`` key)."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as err:
+        raise WorldError(f"cannot read world file {path}: {err.strerror}") from None
+    except yaml.YAMLError as err:
+        raise WorldError(f"{path}: not valid YAML: {err}") from None
+    if isinstance(data, dict) and "image" in data:
+        return world_from_map_yaml(data, path)
+    try:
+        return world_from_dict(data, name=path.stem)
+    except WorldError as err:
+        raise WorldError(f"{path.name}: {err}") from None

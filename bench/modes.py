@@ -1,13 +1,14 @@
-"""Accuracy benchmark on the Intel Research Lab log: improved mode vs the assignment.
+"""The improved mode against the assignment: the Intel Research Lab log (`make bench intel`)
+and the simulated office loop (`make bench office`).
 
 The log's poses are the corrected trajectory; the filter gets odometry re-integrated
-from them with the noise model of :mod:`fastslam.io.odom_noise` (level 1, seeded) and
+from them with the noise model of :mod:`fastslam.sim.odometry_noise` (level 1, seeded) and
 every FLASER scan. For each configuration and seed it prints ATE (after the best
 rigid 2D alignment) and RPE (consecutive processed scans) of the best particle's
 trajectory, wall time, milliseconds per processed scan and the peak memory of the
 process (each case runs in its own interpreter), plus a dead-reckoning row.
 
-    python -m fastslam.bench_accuracy [--seeds 0 1 2] [--level 1.0] [--office]
+    python -m bench.modes [--seeds 0 1 2] [--level 1.0] [--office]
 
 --office runs the simulated office loop instead (office_suite: fastslam.simrun, no
 ROS), the improved mode with the LDS-01's 3.5 m range against the assignment.
@@ -17,26 +18,23 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .config import SlamConfig
-from .geometry import relative
-from .io.carmen import read_log
-from .io.odom_noise import noisy_odometry
-from .scan import Scan
-from .slam import FastSlam
-from .trajectory_metrics import ate, rpe
+from bench.common import data_path, in_own_process
+from fastslam.config import SlamConfig
+from fastslam.eval.trajectory import ate, rpe
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
+from fastslam.io.carmen_log import read_log
+from fastslam.sim.odometry_noise import noisy_odometry
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 # shared/ lies beside the repository (CI clones main next to it), /work/shared here
-INTEL_LOG = next((p for p in (ROOT.parent / "shared" / "data" / "intel-corrected.log.gz",
-                              Path("/work/shared/data/intel-corrected.log.gz")) if p.is_file()),
-                 ROOT.parent / "shared" / "data" / "intel-corrected.log.gz")
+INTEL_LOG = data_path("intel-corrected.log.gz")
 CONFIGS = {"improved": ROOT / "config" / "real.yaml", "assignment": ROOT / "config" / "slam.yaml"}
 PARTICLES = {"improved": 30, "assignment": None}  # None: as the file says
 
@@ -52,9 +50,8 @@ def intel_run(cfg: SlamConfig, seed: int, *, level: float = 1.0, log_path: Path 
     done: list[int] = []  # the log's stamps go backwards in places: match by index, not time
     start = time.perf_counter()
     for i, (rec, pose) in enumerate(zip(log.scans, odom)):
-        mount = tuple(float(v) for v in relative(rec.robot_pose, rec.laser_pose))
         scan = Scan.from_laser(rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment,
-                               0.0, rec.max_range, mount=mount, stamp=rec.t)
+                               0.0, rec.max_range, mount=rec.mount, stamp=rec.t)
         if slam.step(pose, scan).processed:
             done.append(i)
     wall = time.perf_counter() - start
@@ -87,13 +84,6 @@ def dead_reckoning(seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG)
             "peak_mb": nan}
 
 
-def _case_in_own_process(flag: str, args: list) -> dict:
-    """One case run by this module in a fresh interpreter, so its peak memory is its own."""
-    out = subprocess.run([sys.executable, "-m", "fastslam.bench_accuracy", flag, json.dumps(args)],
-                         capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)
-
-
 def _row(r: dict) -> str:
     return (f"{r['config']:<15} {r['seed']:>4} {r['particles']:>3} {r['ate_m']:>7.3f} {r['rpe_m']:>7.3f} "
             f"{r['rpe_deg']:>7.2f} {r['wall_s']:>7.1f} {r['ms_per_scan']:>7.1f} {r['peak_mb']:>7.0f}")
@@ -111,7 +101,7 @@ def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
     rows = []
     for name in configs:
         for seed in seeds:
-            rows.append(_case_in_own_process("--case", [name, seed, level]))
+            rows.append(in_own_process("bench.modes", "intel", name, seed, level))
             print(_row(rows[-1]), flush=True)
     for seed in seeds:
         rows.append(dead_reckoning(seed, level=level))
@@ -131,7 +121,7 @@ LDS01 = {"max_range": 3.5, "no_return_range": 3.5, "linear_update": 0.2, "angula
 
 def office_case(name: str, seed: int, world: str = "office") -> dict:
     """One simulated run of the office route (fastslam.simrun, no ROS) and its figures."""
-    from .simrun import run
+    from fastslam.simrun import run
 
     overrides: dict = {"seed": seed, **(LDS01 if name == "improved" else {})}
     if PARTICLES.get(name):
@@ -152,7 +142,7 @@ def office_suite(seeds: tuple[int, ...] = (0, 1, 2),
     rows = []
     for name in configs:
         for seed in seeds:
-            r = _case_in_own_process("--office-case", [name, seed])
+            r = in_own_process("bench.modes", "office", name, seed)
             rows.append(r)
             print(f"{name:<15} {seed:>4} {r['particles']:>3} {r['trajectory_rms_m']:>7.3f} "
                   f"{r['trajectory_max_m']:>7.3f} {r['dead_reckoning_rms_m']:>7.3f} {r['updates']:>7} "
@@ -169,16 +159,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--level", type=float, default=1.0, help="odometry noise level")
     parser.add_argument("--configs", nargs="+", default=["improved", "assignment"], choices=sorted(CONFIGS))
     parser.add_argument("--office", action="store_true", help="the simulated office loop instead of Intel")
-    parser.add_argument("--case", help=argparse.SUPPRESS)
-    parser.add_argument("--office-case", help=argparse.SUPPRESS)
+    parser.add_argument("--case", help=argparse.SUPPRESS)  # one case, run by in_own_process
     args = parser.parse_args(argv)
-    if args.office_case:
-        name, seed = json.loads(args.office_case)
-        print(json.dumps(office_case(name, seed)))
-        return 0
     if args.case:
-        name, seed, level = json.loads(args.case)
-        print(json.dumps(intel_case(name, seed, level=level)))
+        kind, *rest = json.loads(args.case)
+        print(json.dumps(office_case(*rest) if kind == "office" else intel_case(*rest[:2], level=rest[2])))
         return 0
     if args.office:
         office_suite(tuple(args.seeds), tuple(args.configs))

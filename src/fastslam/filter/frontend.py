@@ -22,7 +22,6 @@ from fastslam.filter.odom_buffer import OdomBuffer
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam, StepInfo
 
-
 JUMP_WINDOW = 1.0  # [s] a kidnap is far from every pose of this window (a second source lags a little)
 
 

@@ -15,7 +15,8 @@ command a user runs, in its own process, one at a time:
 
 Per log: the error of each seed, their median and the worst, the worst single relation
 error (relations), wall and CPU seconds of the whole command and its peak memory (the
-largest over the seeds; CPU seconds stand when others share the machine); then one summary line against the targets of issue 16.
+largest over the seeds; CPU seconds stand when others share the machine); then one
+summary line against the targets of issue 16.
 """
 from __future__ import annotations
 

@@ -110,9 +110,9 @@ def _nats(scores: NDArray[np.int64], beams: int) -> NDArray[np.float64]:
     return (scores - top) / top * beams
 
 
-def pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+def pool_occupied(level: NDArray[np.int8], above: int = 0) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
     """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
-    2x2 and 4x4 block is occupied (H, W multiples of 4).
+    2x2 and 4x4 block is occupied (log-odds above `above`; H, W multiples of 4).
 
     Column pairs of a contiguous flag array are read as one uint16 each, row pairs
     as the two halves of a doubled row: cheaper than maxima of strided int8 views.
@@ -126,13 +126,30 @@ def pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np
         b = min(n, a + maps)
         rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
                           out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
-        occupied = np.greater(rows, 0, out=rows.view(np.bool_))
+        occupied = np.greater(rows, above, out=rows.view(np.bool_))
         np.not_equal(occupied.view(np.uint16), 0, out=half[a:b])
         pairs = half[a:b].reshape(b - a, h // 4, w)                       # rows 2i, 2i+1 side by side
         quads = np.bitwise_or(pairs[:, :, :w // 2], pairs[:, :, w // 2:],
                               out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
         np.not_equal(quads.view(np.uint16), 0, out=quarter[a:b])
     return half.view(np.int8), quarter.view(np.int8)
+
+
+def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+    """(N, H, W) -> (N, H/2, W/2) and (N, H/4, W/4): +1 where any cell of the 2x2 or 4x4
+    block is occupied, -1 where every cell is known free, 0 otherwise (H, W multiples of 4).
+
+    An end point on a free block contradicts the map (the beam would have ended
+    there before): summed, these flags score a candidate by the end points it puts on
+    walls less those it puts in free space, which a wrong alignment (a turned copy of
+    a room, the wrong side of a wall) cannot hide.
+    """
+    half, quarter = pool_occupied(level)
+    half_open, quarter_open = pool_occupied(level, above=-1)     # any cell not free
+    # occupied - (not open): +1, 0 or -1, in place in the flags
+    np.subtract(half, 1 - half_open, out=half)
+    np.subtract(quarter, 1 - quarter_open, out=quarter)
+    return half, quarter
 
 
 def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:

@@ -73,6 +73,8 @@ class SlamConfig:
     likelihood_sigma: float = _num(0.05, 1e-3, 10.0, "likelihood model: endpoint std-dev [m]")
     likelihood_max_dist: float = _num(0.3, 1e-3, 10.0, "likelihood model: distance cap per beam [m]")
     likelihood_gain: float = _num(1.0, 1e-6, 1.0, "likelihood model: exponent on the scan likelihood (smoothing)")
+    likelihood_free: float = _num(0.0, 0.0, 100.0, "likelihood model: extra cost (as a beam's log-likelihood) of "
+                                  "an end point in known free space with no wall within likelihood_max_dist")
     resample_threshold: float = _num(1.0, 0.0, 1.0, "resample when Neff < threshold*N; 1.0 = every update")
     # Proposal (improved mode)
     proposal: builtins.str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")

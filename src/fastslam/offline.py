@@ -84,7 +84,8 @@ class OfflineResult:
         return {"scans": self.scans, "updates": self.updates, "wall_seconds": round(self.wall_seconds, 3),
                 "ms_per_update_median": float(np.median(ms)), "ms_per_update_p95": float(np.percentile(ms, 95)),
                 "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                "dropped": self.dropped, "odometry_rules": self.rules, "events": self.events}
+                "dropped": self.dropped, "odometry_rules": self.rules,
+                "events": self.events}
 
 
 def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> OfflineResult:

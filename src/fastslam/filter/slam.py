@@ -8,7 +8,7 @@ proposal after the motion, likelihood log-weights, resampling only when Neff is 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,6 +18,7 @@ from fastslam.filter import raycast
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
+from fastslam.filter.proposal import gate_match, match_request
 from fastslam.filter.resample import low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
@@ -61,7 +62,6 @@ class FastSlam:
                              l_limit=max(-cfg.l_min, cfg.l_max))
         self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)
         self._match_params = MatchParams.from_config(cfg)
-        self._floor = np.array([cfg.match_floor_xy, cfg.match_floor_xy, cfg.match_floor_theta])
         self.poses = np.zeros((n, 3))
         spread = np.array([cfg.init_sigma_xy, cfg.init_sigma_xy, cfg.init_sigma_theta])
         if np.any(spread > 0):
@@ -171,37 +171,13 @@ class FastSlam:
 
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
-        cfg = self.cfg
-        std = np.maximum(self._motion_std, self._floor)
-        prior = (self._predicted, std) if cfg.match_prior == "motion" else None
-        params, start = self._match_params, self.poses
-        if cfg.match_window > 0:  # as wide as the motion model allows for this step, around its prediction
-            half = cfg.match_window * std
-            params = replace(params, xy_range=min(cfg.match_xy_range, float(max(half[0], half[1]))),
-                             theta_range=min(cfg.match_theta_range, float(half[2])))
-            start = self._predicted
+        start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted,
+                                             self._motion_std)
         match = match_poses(self.grid, start, beams, params, prior=prior)
-        if cfg.match_gate > 0 and match.score is not None:
-            # a good match may correct odometry beyond its model (a wheel slip); a poor one may not
-            good = match.score >= cfg.match_good_score
-            match = replace(match, trusted=match.trusted & (good | self._within_motion(match.poses)))
+        match = gate_match(self.cfg, match, self._predicted, self._motion_std)
         if match.trusted.any():
             self._sample_around(match)
         return int(match.trusted.sum())
-
-    def _within_motion(self, poses: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """(N,) whether each pose (N, 3) lies within match_gate std-devs of the motion
-        model (along and across the predicted heading, heading) of its noise-free
-        prediction: a match farther away explains the scan by a motion the odometry
-        makes implausible (a symmetric room, a wrong corridor), so the particle keeps
-        its motion sample instead."""
-        centre, std = self._predicted, np.maximum(self._motion_std, self._floor)
-        c, s = np.cos(centre[:, 2]), np.sin(centre[:, 2])
-        dx, dy = poses[:, 0] - centre[:, 0], poses[:, 1] - centre[:, 1]
-        along, across = c * dx + s * dy, c * dy - s * dx
-        turn = wrap_angle(poses[:, 2] - centre[:, 2])
-        d2 = (along / std[0]) ** 2 + (across / std[1]) ** 2 + (turn / std[2]) ** 2
-        return np.asarray(d2 <= self.cfg.match_gate ** 2)
 
     def _sample_around(self, match: Match) -> None:
         """Trusted particles take a sample around their match: with the match's covariance,

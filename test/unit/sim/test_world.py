@@ -10,18 +10,16 @@ import pytest
 from fastslam.sim.world import World, WorldError, inside_polygon, world_from_dict
 from fastslam.sim.world_loader import load_world, mask_segments
 
-WORLDS = Path(__file__).resolve().parents[2] / "worlds"
-
 
 @pytest.mark.parametrize("name", ["turtlebot3_world", "room", "office"])
-def test_shipped_worlds_load_with_free_spawn(name: str) -> None:
-    w = load_world(WORLDS / f"{name}.yaml")
+def test_shipped_worlds_load_with_free_spawn(name: str, worlds_dir: Path) -> None:
+    w = load_world(worlds_dir / f"{name}.yaml")
     assert w.segments.shape[1:] == (2, 2) and w.circles.shape[1:] == (3,)
     assert w.clearance(w.spawn[None, :2])[0] > 0.3
 
 
-def test_turtlebot3_world_geometry() -> None:
-    w = load_world(WORLDS / "turtlebot3_world.yaml")
+def test_turtlebot3_world_geometry(worlds_dir: Path) -> None:
+    w = load_world(worlds_dir / "turtlebot3_world.yaml")
     np.testing.assert_allclose(w.spawn, [-2.0, -0.5, 0.0])
     assert len(w.circles) == 9
     np.testing.assert_allclose(np.unique(w.circles[:, 0]), [-1.1, 0.0, 1.1])
@@ -32,10 +30,10 @@ def test_turtlebot3_world_geometry() -> None:
     assert w.solid == [False, True, True, True, True, True]
 
 
-def test_bounds_and_room_size() -> None:
-    xmin, ymin, xmax, ymax = load_world(WORLDS / "room.yaml").bounds()
+def test_bounds_and_room_size(worlds_dir: Path) -> None:
+    xmin, ymin, xmax, ymax = load_world(worlds_dir / "room.yaml").bounds()
     assert (xmin, ymin, xmax, ymax) == (-3.0, -3.0, 3.0, 3.0)
-    xmin, ymin, xmax, ymax = load_world(WORLDS / "office.yaml").bounds()
+    xmin, ymin, xmax, ymax = load_world(worlds_dir / "office.yaml").bounds()
     assert (xmax - xmin, ymax - ymin) == (20.0, 15.0)
 
 

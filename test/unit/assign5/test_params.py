@@ -1,11 +1,10 @@
-"""ROS-free pieces the node relies on: parameter split, odometry buffer, metrics."""
-import numpy as np
+"""The SLAM node's parameters: ROS-only settings in NodeConfig, the algorithm's in SlamConfig."""
+from __future__ import annotations
+
 import pytest
 
-from assign5.params import NodeConfig, split_params
+from assign5.params import CORE_KEYS, NODE_KEYS, NodeConfig, split_params
 from fastslam.config import ConfigError, SlamConfig
-from fastslam.eval.maps import map_quality, trajectory_errors
-from fastslam.filter.odom_buffer import OdomBuffer
 
 
 def test_params_split_into_node_and_core():
@@ -34,47 +33,13 @@ def test_node_defaults_are_valid_and_like_gmapping():
     assert (cfg.map_frame, cfg.odom_frame, cfg.transform_publish_period) == ("map", "odom", 0.05)
 
 
-def test_odom_buffer_interpolates_and_wraps_heading():
-    buf = OdomBuffer(span=10.0)
-    buf.add(1.0, np.array([0.0, 0.0, 3.1]))
-    buf.add(2.0, np.array([1.0, 2.0, -3.1]))
-    p = buf.at(1.5, 0.5)
-    np.testing.assert_allclose(p[:2], [0.5, 1.0])
-    assert abs(abs(p[2]) - np.pi) < 1e-9  # through +-pi, not through 0
-    np.testing.assert_allclose(buf.at(2.3, 0.5), [1.0, 2.0, -3.1])
-    assert buf.at(0.5, 0.5) is None and buf.at(2.6, 0.5) is None
+def test_numbers_and_flags_are_coerced_and_empty_params_give_the_defaults():
+    node, core = split_params({"map_update_interval": 5, "save_on_exit": 1, "debug_maps": 2.0, "particles": 3.0})
+    assert node.map_update_interval == 5.0 and node.save_on_exit is True and node.debug_maps == 2
+    assert core.particles == 3 and type(core.particles) is int
+    assert split_params({}) == (NodeConfig(), SlamConfig())
 
 
-def test_odom_buffer_forgets_old_samples_and_ignores_older_ones():
-    buf = OdomBuffer(span=1.0)
-    for t in np.arange(0.0, 3.01, 0.5):
-        buf.add(t, np.array([t, 0.0, 0.0]))
-    assert len(buf) == 3 and buf.at(1.0, 0.1) is None
-    buf.add(0.1, np.array([9.0, 9.0, 0.0]))
-    assert buf.latest[0] == 3.0
-
-
-def test_trajectory_errors_against_interpolated_truth():
-    truth = np.array([[0.0, 0, 0, 0], [1.0, 1, 0, 0], [2.0, 2, 0, 0]])
-    est = np.array([[0.5, 0.5, 0.3, 0], [1.5, 1.5, -0.4, 0], [5.0, 0, 0, 0]])
-    np.testing.assert_allclose(trajectory_errors(est, truth), [0.3, 0.4])
-
-
-def test_map_quality_counts_recall_and_spurious_cells():
-    occ = np.full((20, 20), 0, dtype=np.int8)
-    occ[:, 15] = 100           # a wall at x in [1.5, 1.6), right where the truth is
-    occ[2, 2] = 100            # one stray cell
-    occ[:, :1] = -1            # never seen
-    boundary = np.c_[np.full(200, 1.55), np.linspace(0.0, 1.999, 200)]
-    q = map_quality(occ, 0.1, (0.0, 0.0), boundary)
-    assert q["boundary_recall"] == 1.0 and q["observed_fraction"] == 1.0
-    assert q["occupied_cells"] == 21 and q["spurious_fraction"] == pytest.approx(1 / 21)
-    occ[:, 15] = 0             # the wall seen as free: observed, but missed
-    assert map_quality(occ, 0.1, (0.0, 0.0), boundary)["boundary_recall"] == 0.0
-
-
-def test_points_in_the_frame_of_a_pose():
-    from fastslam.eval.maps import in_frame_of
-
-    out = in_frame_of(np.array([1.0, 2.0, np.pi / 2]), np.array([[1.0, 3.0], [0.0, 2.0]]))
-    np.testing.assert_allclose(out, [[1.0, 0.0], [0.0, 1.0]], atol=1e-12)
+def test_every_key_has_one_home():
+    assert not NODE_KEYS & CORE_KEYS
+    assert {"scan_topic", "map_frame", "odom_timeout"} <= NODE_KEYS and "particles" in CORE_KEYS

@@ -1,15 +1,12 @@
-"""Trajectory metrics (ATE after 2D alignment, RPE, time matching) and the evaluate CLI."""
+"""Trajectory metrics: ATE after the best rigid 2D alignment, RPE, matching by time."""
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
 
-from fastslam import evaluate
-from fastslam.eval.trajectory import align_2d, apply_alignment, ate, match_by_time, rpe, score
-from fastslam.io.trajectory_files import TrajectoryError, read_trajectory, write_trajectory
+from fastslam.eval.trajectory import align_2d, apply_alignment, ate, ate_errors, match_by_time, rpe, score
 
 
 def loop(rng: np.random.Generator, n: int = 100) -> np.ndarray:
@@ -90,39 +87,35 @@ def test_score_counts_matches():
     assert s.matched == 20 and s.ate_rmse < 1e-9 and s.ate_max < 1e-9
 
 
-def test_trajectory_files_round_trip_and_skip_comments(tmp_path):
-    poses = loop(np.random.default_rng(3), 10)
-    path = write_trajectory(tmp_path / "a.txt", np.arange(10) * 0.5, poses, comment="two\nlines")
-    text = path.read_text()
-    assert text.startswith("# two\n# lines\n# t x y theta\n")
-    t, p = read_trajectory(path)
-    np.testing.assert_array_equal(t, np.arange(10) * 0.5)
-    np.testing.assert_array_equal(p, poses)
+def test_ate_errors_of_a_shifted_and_a_bent_copy():
+    ref = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float)
+    # a pure shift aligns away: zero errors
+    np.testing.assert_allclose(ate_errors(ref, ref + [5.0, -1.0, 0.3]), [0.0, 0.0, 0.0], atol=1e-12)
+    # the middle pose 0.3 off across the line: the alignment moves the line by 0.1 towards it
+    # (no turn, by symmetry): errors 0.1, 0.2, 0.1
+    est = ref + [[0, 0, 0], [0, 0.3, 0], [0, 0, 0]]
+    np.testing.assert_allclose(ate_errors(ref, est), [0.1, 0.2, 0.1], atol=1e-12)
+    assert ate(ref, est) == pytest.approx(math.sqrt((0.01 + 0.04 + 0.01) / 3))
 
 
-def test_bad_trajectory_line(tmp_path):
-    (tmp_path / "b.txt").write_text("0 1 2 3\n1 2 3\n")
-    with pytest.raises(TrajectoryError, match="b.txt:2"):
-        read_trajectory(tmp_path / "b.txt")
+def test_apply_alignment_turns_positions_and_headings():
+    rot = np.array([[0.0, -1.0], [1.0, 0.0]])                   # a quarter turn left
+    out = apply_alignment(rot, np.array([1.0, 0.0]), [[1.0, 0.0, 3.0], [0.0, 2.0, 0.0]])
+    np.testing.assert_allclose(out, [[1.0, 1.0, 3.0 + np.pi / 2 - 2 * np.pi], [-1.0, 0.0, np.pi / 2]], atol=1e-12)
 
 
-def test_cli_prints_json(tmp_path, capsys):
-    ref = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
-    est = ref + [[0, 0.1, 0], [0, -0.1, 0], [0, -0.1, 0], [0, 0.1, 0]]
-    t = np.arange(4.0)
-    write_trajectory(tmp_path / "ref.txt", t, ref)
-    write_trajectory(tmp_path / "est.txt", t + 0.02, moved(est, 0.4, (1, 1)))
-    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "est.txt"), "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert out["matched"] == 4 and out["ate_rmse"] == pytest.approx(0.1, abs=1e-12)
-    assert out["rpe_trans"] == pytest.approx(math.sqrt((0.2 ** 2 + 0 + 0.2 ** 2) / 3))
+def test_empty_and_too_short_inputs():
+    assert math.isnan(ate(np.zeros((0, 3)), np.zeros((0, 3))))
+    assert all(math.isnan(v) for v in rpe(np.zeros((2, 3)), np.zeros((2, 3)), delta=2))
+    with pytest.raises(ValueError, match="delta"):
+        rpe(np.zeros((4, 3)), np.zeros((4, 3)), delta=0)
+    t, r, e = match_by_time([], np.zeros((0, 3)), [1.0], np.zeros((1, 3)))
+    assert len(t) == len(r) == len(e) == 0
+    s = score([0.0], np.zeros((1, 3)), [9.0], np.zeros((1, 3)))
+    assert s.matched == 0 and math.isnan(s.ate_rmse)
 
 
-def test_cli_table_and_errors(tmp_path, capsys):
-    write_trajectory(tmp_path / "ref.txt", [0.0, 1.0], np.zeros((2, 3)))
-    write_trajectory(tmp_path / "far.txt", [5.0, 6.0], np.zeros((2, 3)))
-    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "ref.txt")]) == 0
-    assert "ATE rmse [m]" in capsys.readouterr().out
-    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "far.txt")]) == 1
-    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "missing.txt")]) == 2
-    assert "cannot read trajectory" in capsys.readouterr().err
+def test_nearest_time_matching_prefers_the_earlier_pose_on_a_tie():
+    ref_t, ref = np.array([0.0, 1.0]), np.array([[0, 0, 0], [1, 0, 0]], float)
+    _, r, _ = match_by_time(ref_t, ref, [0.5], np.zeros((1, 3)), max_dt=0.5)
+    np.testing.assert_array_equal(r[:, 0], [0.0])

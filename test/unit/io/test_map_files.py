@@ -137,3 +137,39 @@ def test_read_only_folder(tmp_path):
 def test_rejects_non_2d(tmp_path):
     with pytest.raises(ValueError, match="shape"):
         save_map(tmp_path / "m", np.zeros(5, np.int8), 0.1, (0, 0, 0))
+
+
+def test_trinary_rule_by_hand():
+    # p = (255 - v) / 255: 0 -> 1.0 (occupied), 89 -> 0.651 (occupied), 90 -> 0.647 (unknown),
+    # 205 -> 0.196 (unknown: not below free_thresh 0.196), 206 -> 0.192 (free), 254 -> 0.004
+    pixels = np.array([[0, 89, 90, 205, 206, 254]], dtype=np.uint8)
+    np.testing.assert_array_equal(mapfile.trinary(pixels, negate=False), [[100, 100, -1, -1, 0, 0]])
+    # negate: p = v / 255: 0 -> 0 (free), 89 and 90 -> 0.35 (unknown), 205 .. 254 -> 0.8 .. 1 (occupied)
+    np.testing.assert_array_equal(mapfile.trinary(pixels, negate=True), [[0, -1, -1, 100, 100, 100]])
+
+
+def test_occupancy_to_pixels_flips_rows_and_keeps_map_savers_thresholds():
+    occ = np.array([[-1, 0, 25, 26], [64, 65, 100, 50]], dtype=np.int8)
+    np.testing.assert_array_equal(mapfile.occupancy_to_pixels(occ), [[205, 0, 0, 205], [205, 254, 254, 205]])
+
+
+def test_map_paths_from_a_stem_or_either_file(tmp_path):
+    for name in ("m", "m.yaml", "m.pgm"):
+        pgm, yml = save_map(tmp_path / name, OCC, 0.05, (0.0, 0.0, 0.0))
+        assert (pgm.name, yml.name) == ("m.pgm", "m.yaml")
+
+
+def test_read_pgm_header_forms_and_errors(tmp_path):
+    (tmp_path / "a.pgm").write_bytes(b"P5 2\n# width above, height below\n1 255\n" + bytes([7, 9]))
+    np.testing.assert_array_equal(mapfile.read_pgm(tmp_path / "a.pgm"), [[7, 9]])
+    for data, message in ((b"P2\n1 1\n255\n0", "not a binary"), (b"P5\n2 2\n65535\n" + bytes(8), "16-bit"),
+                          (b"P5\n3 3\n255\n" + bytes(4), "4 bytes of pixels, expected 9"),
+                          (b"P5\n3", "truncated"), (b"P5\nx 3 255\n", "malformed")):
+        (tmp_path / "b.pgm").write_bytes(data)
+        with pytest.raises(MapLoadError, match=message):
+            mapfile.read_pgm(tmp_path / "b.pgm")
+
+
+def test_saved_files_are_readable_by_others(tmp_path):
+    pgm, yml = save_map(tmp_path / "m", OCC, 0.05, (0.0, 0.0, 0.0))
+    assert pgm.stat().st_mode & 0o777 == 0o644 and yml.stat().st_mode & 0o777 == 0o644

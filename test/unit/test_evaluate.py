@@ -1,0 +1,62 @@
+"""python -m fastslam.evaluate: scores printed as a table or JSON, errors as one line and an exit code."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from fastslam import evaluate
+from fastslam.eval.trajectory import TrajectoryScores, apply_alignment
+from fastslam.io.trajectory_files import write_trajectory
+
+
+def moved(poses: np.ndarray, angle: float, shift: tuple[float, float]) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return apply_alignment(np.array([[c, -s], [s, c]]), np.array(shift), poses)
+
+
+def test_cli_prints_json(tmp_path, capsys):
+    ref = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
+    est = ref + [[0, 0.1, 0], [0, -0.1, 0], [0, -0.1, 0], [0, 0.1, 0]]
+    t = np.arange(4.0)
+    write_trajectory(tmp_path / "ref.txt", t, ref)
+    write_trajectory(tmp_path / "est.txt", t + 0.02, moved(est, 0.4, (1, 1)))
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "est.txt"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["matched"] == 4 and out["ate_rmse"] == pytest.approx(0.1, abs=1e-12)
+    assert out["rpe_trans"] == pytest.approx(math.sqrt((0.2 ** 2 + 0 + 0.2 ** 2) / 3))
+
+
+def test_cli_table_and_errors(tmp_path, capsys):
+    write_trajectory(tmp_path / "ref.txt", [0.0, 1.0], np.zeros((2, 3)))
+    write_trajectory(tmp_path / "far.txt", [5.0, 6.0], np.zeros((2, 3)))
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "ref.txt")]) == 0
+    assert "ATE rmse [m]" in capsys.readouterr().out
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "far.txt")]) == 1
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "missing.txt")]) == 2
+    assert "cannot read trajectory" in capsys.readouterr().err
+
+
+def test_table_lines():
+    s = TrajectoryScores(matched=12, ate_rmse=0.12345, ate_mean=0.1, ate_max=0.5, rpe_trans=0.01,
+                         rpe_rot=1.5, rpe_delta=2)
+    lines = evaluate.format_table(s).splitlines()
+    assert lines[0].split() == ["matched", "poses", "12"]
+    assert lines[1].endswith("0.1235") and lines[4].startswith("RPE trans rmse [m / 2 pose]")
+    assert lines[5].split()[-1] == "1.5000"
+    assert len({len(line) for line in lines}) == 1                  # one column of values
+
+
+def test_cli_options_change_the_matching(tmp_path, capsys):
+    write_trajectory(tmp_path / "ref.txt", [0.0, 1.0, 2.0], [[0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    write_trajectory(tmp_path / "est.txt", [0.5, 1.5], [[0.5, 0, 0], [1.5, 0, 0]])
+    ref, est = str(tmp_path / "ref.txt"), str(tmp_path / "est.txt")
+    assert evaluate.main([ref, est]) == 1                            # 0.5 s from every reference pose
+    assert "no estimate pose within 0.05 s" in capsys.readouterr().err
+    assert evaluate.main([ref, est, "--max-dt", "0.5", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["matched"] == 2
+    assert evaluate.main([ref, est, "--interpolate", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["matched"] == 2 and out["ate_max"] == pytest.approx(0.0, abs=1e-12)

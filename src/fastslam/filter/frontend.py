@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fastslam.filter.odom_buffer import OdomBuffer
-from fastslam.filter.scan import Scan
+from fastslam.filter.scan import Scan, fov_problem
 from fastslam.filter.slam import FastSlam, StepInfo
 
 
@@ -65,6 +65,9 @@ class Frontend:
         t = scan.stamp
         if not t > 0:
             raise Dropped("scan stamped zero")
+        problem = fov_problem(scan, self.slam.cfg)
+        if problem:
+            raise Dropped(problem)
         if self.last_stamp is not None and t < self.last_stamp:
             self.events.append(f"resetting the filter: time went backwards ({self.last_stamp:.2f} -> "
                                f"{t:.2f} s): bag restarted or looped?")

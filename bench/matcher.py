@@ -42,7 +42,7 @@ def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 
 def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(true pose, scan) of the simulator's office route, perfect odometry."""
-    from bench.accuracy import LDS01
+    from bench.modes import LDS01
     from fastslam.eval.trajectory import match_by_time
     from fastslam.simrun import run
 
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     overrides = dict(parse_override(s) for s in args.set)
     if args.data == "office":
-        from bench.accuracy import LDS01
+        from bench.modes import LDS01
 
         overrides = {**LDS01, **overrides}
     cfg = SlamConfig.from_yaml(args.config, overrides)

@@ -52,7 +52,7 @@ def sim_case(preset: str) -> dict[str, str]:
 
 
 def intel_case() -> dict[str, str]:
-    from bench.accuracy import intel_run
+    from bench.modes import intel_run
 
     cfg = SlamConfig.from_yaml(ROOT / "config" / "real.yaml", {"seed": 0})
     slam = intel_run(cfg, 0, log_path=INTEL, limit=300)[0]

@@ -8,8 +8,17 @@ import numpy as np
 import pytest
 
 from fastslam import evaluate
-from fastslam.eval.trajectory import align_2d, apply_alignment, ate, match_by_time, rpe, score
-from fastslam.io.trajectory_files import TrajectoryError, read_trajectory, write_trajectory
+from fastslam.eval.trajectory import (
+    align_2d,
+    apply_alignment,
+    ate,
+    interpolate_poses,
+    match_by_time,
+    relations_score,
+    rpe,
+    score,
+)
+from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory, write_trajectory
 
 
 def loop(rng: np.random.Generator, n: int = 100) -> np.ndarray:
@@ -126,3 +135,66 @@ def test_cli_table_and_errors(tmp_path, capsys):
     assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "far.txt")]) == 1
     assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "missing.txt")]) == 2
     assert "cannot read trajectory" in capsys.readouterr().err
+
+
+# A hand-made relations case. Estimate: (0, 0, 0) at t=0, (1, 0, pi/2) at 1, (1, 1, pi/2) at 2.
+HAND_T = np.array([0.0, 1.0, 2.0])
+HAND_POSES = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, math.pi / 2], [1.0, 1.0, math.pi / 2]])
+# 1: t1 = 0.5 -> (0.5, 0, pi/4) interpolated; t2 = 2.5 -> (1, 1, pi/2) clamped. Seen from the
+#    first: ((0.5 + 1) / sqrt2, (-0.5 + 1) / sqrt2, pi/4) = (1.5, 0.5, pi/4) / sqrt2 in x, y.
+#    Expected (1, 0, 0): error = est (+) (-1, 0, 0) = est - (cos pi/4, sin pi/4) in x, y
+#    = (0.5, -0.5) / sqrt2: translation 0.5 m, rotation 45 deg. (The other order,
+#    expected^-1 est, would give |(1.5 / sqrt2 - 1, 0.5 / sqrt2)| = 0.359 m.)
+# 2: t1 = -1 -> (0, 0, 0) clamped, t2 = 1 -> (1, 0, pi/2), expected (1, 0, pi/2): error 0.
+HAND_RELATIONS = "0.5 2.5 1 0 0 0 0 0\n-1 1 1 0 0 0 0 1.5707963267948966\n"
+
+
+def test_relations_metric_on_a_hand_made_case(tmp_path):
+    (tmp_path / "r.relations").write_text(HAND_RELATIONS)
+    s = relations_score(HAND_T, HAND_POSES, read_relations(tmp_path / "r.relations"))
+    assert s.relations == 2 and s.outside == 2
+    # errors 0.5 and 0 m, 45 and 0 deg: mean, sample std (n - 1 = 1), max
+    assert s.trans_mean == pytest.approx(0.25, abs=1e-12)
+    assert s.trans_std == pytest.approx(math.sqrt(2 * 0.25 ** 2), abs=1e-12)
+    assert s.trans_max == pytest.approx(0.5, abs=1e-12)
+    assert s.rot_mean == pytest.approx(22.5, abs=1e-9)
+    assert s.rot_std == pytest.approx(math.sqrt(2 * 22.5 ** 2), abs=1e-9)
+    assert s.rot_max == pytest.approx(45.0, abs=1e-9)
+
+
+def test_interpolation_clamps_and_takes_the_short_way_round():
+    t = np.array([0.0, 1.0])
+    p = np.array([[0.0, 0.0, 3.0], [2.0, 4.0, -3.0]])
+    out = interpolate_poses(t, p, [-5.0, 0.5, 7.0])
+    np.testing.assert_allclose(out[[0, 2]], p, atol=1e-12)
+    np.testing.assert_allclose(out[1, :2], [1.0, 2.0])
+    assert abs(out[1, 2]) == pytest.approx(math.pi)
+
+
+def test_cli_relations_json_and_tum_estimate(tmp_path, capsys):
+    (tmp_path / "r.relations").write_text(HAND_RELATIONS)
+    write_trajectory(tmp_path / "est.tum", HAND_T, HAND_POSES, fmt="tum")
+    assert evaluate.main(["--relations", str(tmp_path / "r.relations"), str(tmp_path / "est.tum"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["relations"] == 2 and out["trans_mean"] == pytest.approx(0.25, abs=1e-12)
+    assert out["rot_max"] == pytest.approx(45.0, abs=1e-9)
+
+
+def test_cli_relations_errors(tmp_path, capsys):
+    write_trajectory(tmp_path / "est.txt", HAND_T, HAND_POSES)
+    (tmp_path / "bad.relations").write_text("1 2 3\n")
+    assert evaluate.main(["--relations", str(tmp_path / "bad.relations"), str(tmp_path / "est.txt")]) == 2
+    assert "bad.relations:1" in capsys.readouterr().err
+    assert evaluate.main(["--relations", str(tmp_path / "none"), str(tmp_path / "est.txt")]) == 2
+    assert "cannot read relations" in capsys.readouterr().err
+
+
+def test_tum_files_round_trip(tmp_path):
+    poses = loop(np.random.default_rng(4), 10)
+    path = write_trajectory(tmp_path / "a.tum", np.arange(10) * 0.5, poses, fmt="tum")
+    first = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")][0].split()
+    assert len(first) == 8 and first[3] == first[4] == first[5] == "0.0"
+    t, p = read_trajectory(path)
+    np.testing.assert_array_equal(t, np.arange(10) * 0.5)
+    np.testing.assert_allclose(p[:, :2], poses[:, :2], rtol=0, atol=0)
+    np.testing.assert_allclose(np.cos(p[:, 2] - poses[:, 2]), 1.0, atol=1e-12)

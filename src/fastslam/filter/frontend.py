@@ -40,6 +40,8 @@ class Frontend:
         self.odom = OdomBuffer(self.odom_buffer)
         self.last_stamp: float | None = None
         self.last_odom: NDArray[np.float64] | None = None  # odometry pose of the last processed scan
+        self.scan_odom: NDArray[np.float64] | None = None  # odometry pose of the last scan the filter saw
+        self.resets = 0
         self._rebase = False
 
     def add_odom(self, t: float, pose: NDArray[np.float64]) -> None:
@@ -84,6 +86,7 @@ class Frontend:
             self._rebase = False
         info = self.slam.step(odom, scan)
         self.last_stamp = t
+        self.scan_odom = odom
         if info.processed:
             self.last_odom = odom
         return info
@@ -93,4 +96,6 @@ class Frontend:
         self.odom.clear()
         self.last_stamp = None
         self.last_odom = None
+        self.scan_odom = None
         self._rebase = False
+        self.resets += 1

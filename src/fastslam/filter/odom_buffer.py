@@ -8,7 +8,6 @@ from numpy.typing import NDArray
 
 from fastslam.geometry import wrap_angle
 
-
 # Samples kept at most, whatever their stamps: a driver whose stamps freeze would
 # otherwise grow the buffer without end (10 s of odometry at 1 kHz fit).
 MAX_SAMPLES = 10_000

@@ -1,187 +1,175 @@
-"""Accuracy benchmark on the Intel Research Lab log: improved mode vs the assignment.
+"""Accuracy over the whole development set, through the offline tool (`make bench accuracy`).
 
-The log's poses are the corrected trajectory; the filter gets odometry re-integrated
-from them with the noise model of :mod:`fastslam.sim.odometry_noise` (level 1, seeded) and
-every FLASER scan. For each configuration and seed it prints ATE (after the best
-rigid 2D alignment) and RPE (consecutive processed scans) of the best particle's
-trajectory, wall time, milliseconds per processed scan and the peak memory of the
-process (each case runs in its own interpreter), plus a dead-reckoning row.
+    PYTHONPATH=src:. python -m bench.accuracy [--config config/real.yaml] [--set key=value]... [--seeds 0 1 2]
+                             [--logs csail aces intel ...] [--json FILE]
 
-    python -m bench.accuracy [--seeds 0 1 2] [--level 1.0] [--office]
+Every case runs `python -m fastslam.offline BAG --out DIR --config ... --seed S`, the
+command a user runs, in its own process, one at a time:
 
---office runs the simulated office loop instead (office_suite: fastslam.simrun, no
-ROS), the improved mode with the LDS-01's 3.5 m range against the assignment.
+- the real robots with their own odometry at their full scan rate (`mit-csail.bag`,
+  `aces.bag`), scored with their ground-truth relations (Kuemmerle et al. 2009) on the
+  pose at every scan (`trajectory_scans.txt`); also on the live `map -> odom` poses;
+- each corrected CARMEN log turned into a bag with simulated odometry noise
+  (`python -m fastslam.carmen_to_bag LOG --out BAG --odom-noise 1 --seed S`), scored by the
+  ATE of `trajectory_scans.txt` against the log's poses.
+
+Per log: the error of each seed, their median and the worst, the worst single relation
+error (relations), wall seconds of the whole command and its peak memory (the largest
+over the seeds); then one summary line against the targets of issue 16.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import resource
+import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from fastslam.config import SlamConfig
-from fastslam.eval.trajectory import ate, rpe
-from fastslam.filter.scan import Scan
-from fastslam.filter.slam import FastSlam
-from fastslam.io.carmen_log import read_log
-from fastslam.sim.odometry_noise import noisy_odometry
+from bench.common import ROOT, data_path
+from fastslam.eval.trajectory import ate, match_by_time, relations_score
+from fastslam.io.trajectory_files import read_relations, read_trajectory
 
-ROOT = Path(__file__).resolve().parents[1]
-# shared/ lies beside the repository (CI clones main next to it), /work/shared here
-INTEL_LOG = next((p for p in (ROOT.parent / "shared" / "data" / "intel-corrected.log.gz",
-                              Path("/work/shared/data/intel-corrected.log.gz")) if p.is_file()),
-                 ROOT.parent / "shared" / "data" / "intel-corrected.log.gz")
-CONFIGS = {"improved": ROOT / "config" / "real.yaml", "assignment": ROOT / "config" / "slam.yaml"}
-PARTICLES = {"improved": 30, "assignment": None}  # None: as the file says
+REAL = {"csail": "mit-csail", "aces": "aces"}          # bag + relations
+CORRECTED = ("intel", "seattle", "orebro", "freiburg-101", "belgioioso", "edmonton", "acapulco")
+# issue 16's targets
+TARGET_REL = {"csail": 0.032, "aces": 0.045}           # relations mean [m]
+TARGET_REL_MAX = 0.5                                   # any single relation [m]
+TARGET_WALL = {"csail": 10.0, "aces": 15.0}            # [s]
+TARGET_ATE_MEDIAN, TARGET_ATE_WORST = 0.15, 0.5        # [m]
+CACHE = ROOT / "out" / "bench-accuracy"                # converted bags, reused between runs
 
 
-def intel_run(cfg: SlamConfig, seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG,
-              limit: int | None = None) -> tuple[FastSlam, np.ndarray, np.ndarray, float, int]:
-    """Runs cfg on the log; returns the filter, the matched reference (T, 3) and the
-    estimate (T, 3) of the best particle, the wall time [s] and the scans processed."""
-    log = read_log(log_path, limit=limit)
-    truth = np.array([s.robot_pose for s in log.scans])
-    odom = noisy_odometry(truth, level, np.random.default_rng(seed))
-    slam = FastSlam(cfg)
-    done: list[int] = []  # the log's stamps go backwards in places: match by index, not time
+def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) -> dict:
+    """The offline tool on bag in its own process; its stats plus the command's wall time."""
+    cmd = [sys.executable, "-m", "fastslam.offline", str(bag), "--out", str(out), "--config", str(config),
+           "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)]
     start = time.perf_counter()
-    for i, (rec, pose) in enumerate(zip(log.scans, odom)):
-        scan = Scan.from_laser(rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment,
-                               0.0, rec.max_range, mount=rec.mount, stamp=rec.t)
-        if slam.step(pose, scan).processed:
-            done.append(i)
+    done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
     wall = time.perf_counter() - start
-    return slam, truth[done], slam.trajectory()[:, 1:], wall, len(done)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip().splitlines()[-1:]}")
+    stats = json.loads((out / "stats.json").read_text())
+    warnings = [ln for ln in done.stderr.splitlines() if ln.startswith("warning")]
+    return {"wall_s": wall, "peak_mb": stats["peak_memory_mb"], "updates": stats["updates"],
+            "scans": stats["scans"], "warnings": len(warnings)}
 
 
-def intel_case(name: str, seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG,
-               limit: int | None = None) -> dict:
-    """Runs one configuration on the log in this process and returns its figures."""
-    overrides: dict = {"seed": seed}
-    if PARTICLES.get(name):
-        overrides["particles"] = PARTICLES[name]
-    cfg = SlamConfig.from_yaml(CONFIGS[name], overrides)
-    _, ref, est, wall, processed = intel_run(cfg, seed, level=level, log_path=log_path, limit=limit)
-    rpe_t, rpe_r = rpe(ref, est)
-    return {"config": name, "seed": seed, "particles": cfg.particles, "ate_m": ate(ref, est),
-            "rpe_m": rpe_t, "rpe_deg": rpe_r, "wall_s": wall, "ms_per_scan": 1000 * wall / max(processed, 1),
-            "processed": processed, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
 
 
-def dead_reckoning(seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG) -> dict:
-    """The odometry alone as an estimate."""
-    log = read_log(log_path)
-    truth = np.array([s.robot_pose for s in log.scans])
-    odom = noisy_odometry(truth, level, np.random.default_rng(seed))
-    rpe_t, rpe_r = rpe(truth, odom)
-    nan = float("nan")
-    return {"config": "dead reckoning", "seed": seed, "particles": 0, "ate_m": ate(truth, odom),
-            "rpe_m": rpe_t, "rpe_deg": rpe_r, "wall_s": nan, "ms_per_scan": nan, "processed": len(truth),
-            "peak_mb": nan}
+def converted(log: str, seed: int, level: float = 1.0) -> Path:
+    """The corrected log as a bag with odometry noise (level, seed), converted once."""
+    bag = CACHE / f"{log}-noise{level:g}-seed{seed}.bag"
+    gt = bag.with_name(bag.name + ".gt.txt")
+    if not (bag.exists() and gt.exists()):
+        CACHE.mkdir(parents=True, exist_ok=True)
+        bag.unlink(missing_ok=True)
+        cmd = [sys.executable, "-m", "fastslam.carmen_to_bag", str(data_path(f"{log}-corrected.log.gz")),
+               "--out", str(bag),
+               "--odom-noise", f"{level:g}", "--seed", str(seed)]
+        done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip()}")
+    return bag
 
 
-def _case_in_own_process(flag: str, args: list) -> dict:
-    """One case run by this module in a fresh interpreter, so its peak memory is its own."""
-    out = subprocess.run([sys.executable, "-m", "bench.accuracy", flag, json.dumps(args)],
-                         capture_output=True, text=True, check=True)
-    return json.loads(out.stdout)
+def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path) -> dict:
+    stem = REAL[name]
+    out = work / f"{name}-{seed}"
+    row = run_offline(data_path(f"{stem}.bag"), out, config, seed, sets)
+    rel = read_relations(data_path(f"{stem}.relations"))
+    t, p = read_trajectory(out / "trajectory_scans.txt")
+    s = relations_score(t, p, rel)
+    lt, lp = read_trajectory(out / "live_poses.txt")
+    live = relations_score(lt, lp, rel)
+    return {"log": name, "seed": seed, "error": s.trans_mean, "rel_max": s.trans_max, "rot_deg": s.rot_mean,
+            "live": live.trans_mean, "live_max": live.trans_max, **row}
 
 
-def _row(r: dict) -> str:
-    return (f"{r['config']:<15} {r['seed']:>4} {r['particles']:>3} {r['ate_m']:>7.3f} {r['rpe_m']:>7.3f} "
-            f"{r['rpe_deg']:>7.2f} {r['wall_s']:>7.1f} {r['ms_per_scan']:>7.1f} {r['peak_mb']:>7.0f}")
+def corrected_case(name: str, seed: int, config: Path, sets: list[str], work: Path) -> dict:
+    bag = converted(name, seed)
+    out = work / f"{name}-{seed}"
+    row = run_offline(bag, out, config, seed, sets)
+    ref_t, ref = read_trajectory(bag.with_name(bag.name + ".gt.txt"))
+    t, p = read_trajectory(out / "trajectory_scans.txt")
+    _, r, e = match_by_time(ref_t, ref, t, p, max_dt=1e-4)
+    lt, lp = read_trajectory(out / "live_poses.txt")
+    _, lr, le = match_by_time(ref_t, ref, lt, lp, max_dt=1e-4)
+    return {"log": name, "seed": seed, "error": ate(r, e), "matched": len(r), "live": ate(lr, le), **row}
 
 
-def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
-                configs: tuple[str, ...] = ("improved", "assignment")) -> list[dict]:
-    """Every configuration and seed in a fresh interpreter (one at a time); prints a table."""
-    if not INTEL_LOG.exists():
-        print(f"intel: {INTEL_LOG} not found, skipped")
-        return []
-    print(f"Intel Research Lab, {INTEL_LOG.name}, odometry noise level {level}")
-    print(f"{'config':<15} {'seed':>4} {'N':>3} {'ATE m':>7} {'RPE m':>7} {'RPE deg':>7} "
-          f"{'wall s':>7} {'ms/scan':>7} {'peak MB':>7}")
-    rows = []
-    for name in configs:
-        for seed in seeds:
-            rows.append(_case_in_own_process("--case", [name, seed, level]))
-            print(_row(rows[-1]), flush=True)
-    for seed in seeds:
-        rows.append(dead_reckoning(seed, level=level))
-        print(_row(rows[-1]), flush=True)
-    for name in configs:
-        ates = [r["ate_m"] for r in rows if r["config"] == name]
-        print(f"{name}: median ATE {np.median(ates):.3f} m over seeds {list(seeds)}")
-    return rows
+def print_log(rows: list[dict], relations: bool) -> None:
+    err = [r["error"] for r in rows]
+    seeds = " ".join(f"{v:6.3f}" for v in err)
+    extra = f"{max(r['rel_max'] for r in rows):8.3f}" if relations else f"{'':8}"
+    live = np.median([r["live"] for r in rows])
+    print(f"{rows[0]['log']:<13} {'rel' if relations else 'ATE':<4} {seeds:<21} {np.median(err):7.3f} "
+          f"{max(err):7.3f} {extra} {live:7.3f} {max(r['wall_s'] for r in rows):7.1f} "
+          f"{max(r['peak_mb'] for r in rows):7.0f} {rows[0]['updates']:>5}/{rows[0]['scans']:<5}", flush=True)
 
 
-# The improved mode on the simulator's LDS-01 (3.5 m, 5 Hz): real.yaml with the laser's
-# range, the assignment's clearing of no-returns (the simulated LDS-01 reports inf), and
-# gmapping-like update gating with the narrower match window its smaller steps need.
-LDS01 = {"max_range": 3.5, "no_return_range": 3.5, "linear_update": 0.2, "angular_update": 0.2,
-         "match_xy_range": 0.2, "match_theta_range": 0.2, "free_beam_step": 1}
+def summary(rows: list[dict]) -> str:
+    """One line, worst case first: each target's figure and whether it is met."""
+    def by(log: str) -> list[dict]:
+        return [r for r in rows if r["log"] == log]
 
-
-def office_case(name: str, seed: int, world: str = "office") -> dict:
-    """One simulated run of the office route (fastslam.simrun, no ROS) and its figures."""
-    from fastslam.simrun import run
-
-    overrides: dict = {"seed": seed, **(LDS01 if name == "improved" else {})}
-    if PARTICLES.get(name):
-        overrides["particles"] = PARTICLES[name]
-    cfg = SlamConfig.from_yaml(CONFIGS[name], overrides)
-    result = run(world, cfg, seed=seed)
-    return {"config": name, "seed": seed, "particles": cfg.particles, **result.metrics(),
-            "filter_s": result.seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
-
-
-def office_suite(seeds: tuple[int, ...] = (0, 1, 2),
-                 configs: tuple[str, ...] = ("improved", "assignment")) -> list[dict]:
-    """The office loop in the simulator for each configuration and seed; prints a table
-    of the best particle's trajectory RMS error against the simulator's truth."""
-    print("Simulated office loop (LDS-01 3.5 m, noisy odometry); filter s: time spent in the filter")
-    print(f"{'config':<15} {'seed':>4} {'N':>3} {'RMS m':>7} {'max m':>7} {'odom m':>7} {'updates':>7} "
-          f"{'ms/upd':>7} {'filter s':>8} {'peak MB':>7}")
-    rows = []
-    for name in configs:
-        for seed in seeds:
-            r = _case_in_own_process("--office-case", [name, seed])
-            rows.append(r)
-            print(f"{name:<15} {seed:>4} {r['particles']:>3} {r['trajectory_rms_m']:>7.3f} "
-                  f"{r['trajectory_max_m']:>7.3f} {r['dead_reckoning_rms_m']:>7.3f} {r['updates']:>7} "
-                  f"{r['ms_per_update']:>7.1f} {r['filter_s']:>8.1f} {r['peak_mb']:>7.0f}", flush=True)
-    for name in configs:
-        rms = [r["trajectory_rms_m"] for r in rows if r["config"] == name]
-        print(f"{name}: median trajectory RMS {np.median(rms):.3f} m over seeds {list(seeds)}")
-    return rows
+    parts, met, total = [], 0, 0
+    checks = []
+    for name in REAL:
+        rs = by(name)
+        if rs:
+            checks.append((f"{name} rel mean worst", max(r["error"] for r in rs), TARGET_REL[name]))
+            checks.append((f"{name} rel max", max(r["rel_max"] for r in rs), TARGET_REL_MAX))
+            checks.append((f"{name} wall", max(r["wall_s"] for r in rs), TARGET_WALL[name]))
+    logs = [n for n in CORRECTED if by(n)]
+    if logs:
+        worst_median = max(logs, key=lambda n: np.median([r["error"] for r in by(n)]))
+        checks.append((f"ATE median worst ({worst_median})",
+                       float(np.median([r["error"] for r in by(worst_median)])), TARGET_ATE_MEDIAN))
+        worst = max((r for r in rows if r["log"] in logs), key=lambda r: r["error"])
+        checks.append((f"ATE run worst ({worst['log']} seed {worst['seed']})", worst["error"], TARGET_ATE_WORST))
+    checks.sort(key=lambda c: -c[1] / c[2])  # worst ratio to its target first
+    for label, value, target in checks:
+        total += 1
+        ok = value <= target
+        met += ok
+        parts.append(f"{label} {value:.3f} ({'ok' if ok else 'over'} {target:g})")
+    return f"summary: {met}/{total} targets met; " + "; ".join(parts)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--level", type=float, default=1.0, help="odometry noise level")
-    parser.add_argument("--configs", nargs="+", default=["improved", "assignment"], choices=sorted(CONFIGS))
-    parser.add_argument("--office", action="store_true", help="the simulated office loop instead of Intel")
-    parser.add_argument("--case", help=argparse.SUPPRESS)
-    parser.add_argument("--office-case", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
-    if args.office_case:
-        name, seed = json.loads(args.office_case)
-        print(json.dumps(office_case(name, seed)))
-        return 0
-    if args.case:
-        name, seed, level = json.loads(args.case)
-        print(json.dumps(intel_case(name, seed, level=level)))
-        return 0
-    if args.office:
-        office_suite(tuple(args.seeds), tuple(args.configs))
-    else:
-        intel_suite(tuple(args.seeds), args.level, tuple(args.configs))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--config", default=str(ROOT / "config" / "real.yaml"))
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="passed to the offline tool")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--logs", nargs="+", default=list(REAL) + list(CORRECTED), choices=list(REAL) + list(CORRECTED))
+    ap.add_argument("--json", metavar="FILE", help="also write every row here")
+    args = ap.parse_args(argv)
+    config = Path(args.config).resolve()
+    shown = config.relative_to(ROOT) if ROOT in config.parents else config  # no is_relative_to on 3.8
+    print(f"accuracy: {shown}"
+          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {data_path('aces.bag').parent}")
+    print("rel: relations mean [m] of the pose at every scan (max: worst single relation); ATE [m] after "
+          "alignment; live: the same for map->odom's poses (median); wall s and peak MB: whole command, "
+          "largest over the seeds")
+    print(f"{'log':<13} {'':<4} {'seeds':<21} {'median':>7} {'worst':>7} {'max rel':>8} {'live':>7} "
+          f"{'wall s':>7} {'peak MB':>7} {'updates/scans'}")
+    rows: list[dict] = []
+    with tempfile.TemporaryDirectory(prefix="bench-accuracy-") as tmp:
+        for name in args.logs:
+            case = real_case if name in REAL else corrected_case
+            log_rows = [case(name, seed, config, args.set, Path(tmp)) for seed in args.seeds]
+            rows += log_rows
+            print_log(log_rows, name in REAL)
+    print(summary(rows))
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
     return 0
 
 

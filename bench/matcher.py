@@ -19,6 +19,7 @@ from typing import Iterator
 
 import numpy as np
 
+from bench.common import data_path
 from fastslam.config import SlamConfig, parse_override
 from fastslam.filter.motion import odometry_std
 from fastslam.filter.scan import Scan, select_beams
@@ -31,10 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(reference pose, scan) of the Intel log's FLASER records."""
-    from bench.accuracy import INTEL_LOG
     from fastslam.io.carmen_log import read_log
 
-    for rec in read_log(INTEL_LOG, limit=limit).scans:
+    for rec in read_log(data_path("intel-corrected.log.gz"), limit=limit).scans:
         yield np.asarray(rec.robot_pose, dtype=float), Scan.from_laser(
             rec.ranges.astype(np.float64), rec.angle_min, rec.angle_increment, 0.0, rec.max_range,
             mount=rec.mount, stamp=rec.t)
@@ -42,7 +42,7 @@ def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 
 def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(true pose, scan) of the simulator's office route, perfect odometry."""
-    from bench.accuracy import LDS01
+    from bench.modes import LDS01
     from fastslam.eval.trajectory import match_by_time
     from fastslam.simrun import run
 
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     overrides = dict(parse_override(s) for s in args.set)
     if args.data == "office":
-        from bench.accuracy import LDS01
+        from bench.modes import LDS01
 
         overrides = {**LDS01, **overrides}
     cfg = SlamConfig.from_yaml(args.config, overrides)

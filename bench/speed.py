@@ -1,14 +1,8 @@
-"""`make bench`: speed, memory and accuracy figures (recorded in docs/benchmarks.md).
+"""Speed and memory of one filter step (`make bench speed`; docs/benchmarks.md).
 
-    python -m bench.speed [speed] [intel] [office] [matcher] [longrun]    (default: all)
-
-speed: for N in {20, 50, 100} and beams in {60, 360}, on a 10 m and a 40 m square map
+For N in {20, 50, 100} and beams in {60, 360}, on a 10 m and a 40 m square map
 at 0.05 m, the median milliseconds per full filter step and the peak memory of a fresh
 process (each case in its own interpreter, so peak RSS is that case's alone).
-intel, office: accuracy of the improved mode vs the assignment (fastslam.bench_accuracy).
-matcher: the scan matcher alone against reference poses (fastslam.bench_matcher).
-longrun: a 30-minute simulated run (office loop, faster than real time) with memory
-and time per update sampled every 5 minutes of simulated time.
 """
 from __future__ import annotations
 
@@ -16,13 +10,13 @@ import argparse
 import functools
 import json
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from bench.common import in_own_process
 from fastslam.config import SlamConfig
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
@@ -67,9 +61,7 @@ def speed_case(particles: int, beams: int, size: float, steps: int = 25) -> dict
 def baseline_rss_mb() -> float:
     """Peak RSS of an interpreter that loaded the core and ran the speed case's steps
     with one particle on a 1 m map: Python, numpy and the code, but no maps."""
-    out = subprocess.run([sys.executable, "-m", "bench.speed", "--case", json.dumps([1, 60, 1.0])],
-                         capture_output=True, text=True, check=True)
-    return float(json.loads(out.stdout)["peak_rss_mb"])
+    return float(in_own_process("bench.speed", 1, 60, 1.0)["peak_rss_mb"])
 
 
 def speed_suite() -> list[dict]:
@@ -80,10 +72,7 @@ def speed_suite() -> list[dict]:
     for size in (10.0, 40.0):
         for n in (20, 50, 100):
             for beams in (60, 360):
-                out = subprocess.run([sys.executable, "-m", "bench.speed", "--case",
-                                      json.dumps([n, beams, size])],
-                                     capture_output=True, text=True, check=True)
-                row = json.loads(out.stdout)
+                row = in_own_process("bench.speed", n, beams, size)
                 # The target: peak within 1.2 x the maps' own bytes plus the interpreter.
                 row["budget_mb"] = 1.2 * row["maps_mb"] + base
                 rows.append(row)
@@ -93,85 +82,15 @@ def speed_suite() -> list[dict]:
     return rows
 
 
-def current_rss_mb() -> float:
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * resource.getpagesize() / 2**20
-
-
-def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> list[dict]:
-    """Drives the office loop again and again for `minutes` of simulated time."""
-    from pathlib import Path
-
-    from fastslam.sim.route import load_route
-    from fastslam.sim.sim import SimConfig, Simulation
-    from fastslam.sim.world_loader import load_world
-
-    root = Path(__file__).resolve().parents[1]
-    world = load_world(root / "worlds" / "office.yaml")
-    loop = load_route(root / "worlds" / "office.route.yaml")
-    route = np.concatenate([loop] * 20)
-    sim_cfg = SimConfig(seed=0)
-    sim = Simulation(world, sim_cfg, np.random.default_rng(0), route=route)
-    slam = FastSlam(SlamConfig.from_yaml(root / config, {"seed": 0}))
-    angles = sim.lidar.angles
-    rows, window, next_mark = [], [], 300.0
-    start = time.perf_counter()
-    print(f"{'sim min':>7} {'updates':>7} {'ms/update':>9} {'p95':>6} {'RSS MB':>7} {'maps MB':>8} {'grid':>9}")
-    while sim.time < minutes * 60:
-        tick = sim.step()
-        if tick.scan is not None:
-            scan = Scan.from_laser(tick.scan.astype(np.float32), float(angles[0]), float(angles[1] - angles[0]),
-                                    sim_cfg.range_min, sim_cfg.range_max, mount=(sim_cfg.laser_x, 0.0, 0.0),
-                                    stamp=tick.t)
-            info = slam.step(sim.odom.pose.copy(), scan)
-            window.append(info.seconds)
-        if sim.time >= next_mark:
-            next_mark += 300.0
-            h, w = slam.grid.shape
-            row = {"sim_min": round(sim.time / 60), "updates": slam.updates,
-                   "ms_median": 1000 * float(np.median(window)), "ms_p95": 1000 * float(np.percentile(window, 95)),
-                   "rss_mb": current_rss_mb(), "maps_mb": slam.grid.logodds.nbytes / 2**20, "grid": f"{h}x{w}"}
-            rows.append(row)
-            window = []
-            print(f"{row['sim_min']:>7} {row['updates']:>7} {row['ms_median']:>9.1f} {row['ms_p95']:>6.1f} "
-                  f"{row['rss_mb']:>7.1f} {row['maps_mb']:>8.1f} {row['grid']:>9}", flush=True)
-        if tick.route_finished:
-            break
-    print(f"{minutes:.0f} simulated minutes in {time.perf_counter() - start:.0f} s wall")
-    return rows
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("suites", nargs="*", default=["speed", "intel", "office", "matcher", "longrun"],
-                        help="speed, intel, office, matcher, longrun (default: all)")
-    parser.add_argument("--case", help=argparse.SUPPRESS)
+    parser.add_argument("--case", help=argparse.SUPPRESS)  # one case, run by in_own_process
     args = parser.parse_args(argv)
     if args.case:
         n, beams, size = json.loads(args.case)
         print(json.dumps(speed_case(n, beams, size)))
         return 0
-    for suite in args.suites:
-        print(f"== {suite}", flush=True)
-        if suite == "speed":
-            speed_suite()
-        elif suite == "intel":
-            from bench.accuracy import intel_suite
-
-            intel_suite()
-        elif suite == "office":
-            from bench.accuracy import office_suite
-
-            office_suite()
-        elif suite == "matcher":
-            from bench.matcher import main as matcher_main
-
-            for data in ("intel", "office"):
-                matcher_main([data])
-        elif suite == "longrun":
-            longrun_suite()
-        else:
-            parser.error(f"unknown suite {suite!r}")
+    speed_suite()
     return 0
 
 

@@ -1,6 +1,6 @@
-"""Fixtures shared by the unit and integration tests: the repository and its worlds,
-the development data beside it, the pillar room and scans of it cast by the
-simulator's exact lidar, and seeded generators."""
+"""Fixtures shared by the unit and integration tests: the repository and its worlds, the
+pillar room and scans of it cast by the simulator's exact lidar, and seeded generators
+(the development data: test/integration/conftest.py)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -16,7 +16,6 @@ from fastslam.sim.world import World
 from fastslam.sim.world_loader import load_world
 
 ROOT = Path(__file__).resolve().parents[1]
-DEV_DATA = ROOT.parent / "shared" / "data"  # the development data lies beside the repository
 
 RoomRanges = Callable[[ArrayLike, ArrayLike], NDArray[np.float64]]
 
@@ -30,21 +29,6 @@ def repo_root() -> Path:
 @pytest.fixture(scope="session")
 def worlds_dir() -> Path:
     return ROOT / "worlds"
-
-
-@pytest.fixture(scope="session")
-def dev_data() -> Callable[[str], Path]:
-    """dev_data(name) -> the path of a file of the development data (../shared/data beside
-    the repository). A missing file fails the test that asked for it, naming the path: the
-    data are part of the test set-up, never a reason to skip."""
-    def path(name: str) -> Path:
-        p = DEV_DATA / name
-        if not p.is_file():
-            pytest.fail(f"{p} is missing: the development data (shared/data) must lie beside the repository",
-                        pytrace=False)
-        return p
-
-    return path
 
 
 @pytest.fixture(scope="session")

@@ -22,6 +22,7 @@ from fastslam.eval.trajectory import ate
 from fastslam.io.bag_writer import BagWriter
 from fastslam.io.carmen_log import CarmenError, CarmenLog, read_log
 from fastslam.io.records import BagError, OdomRecord, ScanRecord
+from fastslam.io.staging import staged
 from fastslam.io.trajectory_files import write_trajectory
 from fastslam.sim.odometry_noise import DEFAULT_ALPHAS, OdomNoise, noisy_odometry
 from fastslam.transforms import StaticTransform
@@ -85,18 +86,23 @@ def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 
     odometry = noisy_odometry(truth, odom_noise, np.random.default_rng(seed), alphas)
     mount = log.laser_mount()
     out = Path(out)
-    with BagWriter(out) as writer:
-        writer.static([StaticTransform.planar(base_frame, laser_frame, *mount)], t=float(times[0]))
-        for s, t, (x, y, yaw) in zip(log.scans, times.tolist(), odometry.tolist()):
-            writer.odom(OdomRecord(t, x, y, yaw, child_frame_id=base_frame, frame_id=odom_frame))
-            writer.scan(ScanRecord(t, s.ranges, s.angle_min, s.angle_increment, 0.0, s.max_range,
-                                   frame_id=laser_frame))
+    if out.exists():
+        raise BagError(f"{out} exists; choose a new name")
     comment = (f"reference trajectory (the log's robot poses) for {out.name}\n"
                f"odometry noise level {odom_noise} seed {seed} coefficients {alphas._asdict()}")
-    ref = write_trajectory(reference_path(out), times, truth, comment=comment)
-    # the odometry as a trajectory too, so dead reckoning can be scored with fastslam.evaluate
-    write_trajectory(reference_path(out, "odom"), times, odometry, comment=f"odometry in {out.name}\n{comment}")
-    return Conversion(bag=out, reference=ref, scans=len(times), mount=mount, times=times,
+    # Written under temporary names, renamed when all three are complete (the bag last):
+    # an error or a kill leaves no half-written bag behind.
+    with staged(reference_path(out), reference_path(out, "odom"), out) as (gt_tmp, odom_tmp, bag_tmp):
+        with BagWriter(bag_tmp) as writer:
+            writer.static([StaticTransform.planar(base_frame, laser_frame, *mount)], t=float(times[0]))
+            for s, t, (x, y, yaw) in zip(log.scans, times.tolist(), odometry.tolist()):
+                writer.odom(OdomRecord(t, x, y, yaw, child_frame_id=base_frame, frame_id=odom_frame))
+                writer.scan(ScanRecord(t, s.ranges, s.angle_min, s.angle_increment, 0.0, s.max_range,
+                                       frame_id=laser_frame))
+        write_trajectory(gt_tmp, times, truth, comment=comment)
+        # the odometry as a trajectory too, so dead reckoning can be scored with fastslam.evaluate
+        write_trajectory(odom_tmp, times, odometry, comment=f"odometry in {out.name}\n{comment}")
+    return Conversion(bag=out, reference=reference_path(out), scans=len(times), mount=mount, times=times,
                       truth=truth, odometry=odometry)
 
 
@@ -116,6 +122,12 @@ def main(argv: list[str] | None = None) -> int:
         result = convert(log, args.out, odom_noise=args.odom_noise, seed=args.seed)
     except (OSError, CarmenError, BagError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted: nothing written", file=sys.stderr)
+        return 130
+    except Exception as err:  # the bag library's own errors: one line, never a traceback
+        print(f"error: writing {args.out} failed: {type(err).__name__}: {err}", file=sys.stderr)
         return 1
     duration = float(result.times[-1] - result.times[0]) if result.scans > 1 else 0.0
     drift = ate(result.truth, result.odometry)

@@ -1,9 +1,12 @@
-"""Score an estimated 2D trajectory against a reference (ATE and RPE).
+"""Score an estimated 2D trajectory against a reference (ATE and RPE), or against
+ground-truth relations (the Kuemmerle et al. 2009 metric).
 
     python -m fastslam.evaluate REFERENCE ESTIMATE [--max-dt 0.05] [--interpolate] [--delta 1] [--json]
+    python -m fastslam.evaluate --relations FILE ESTIMATE [--json]
 
-Both files hold ``t x y theta`` lines (``#`` comments allowed), e.g. ``out.bag.gt.txt``
-from ``python -m fastslam.carmen_to_bag`` and a SLAM run's trajectory. See
+Trajectory files hold ``t x y theta`` lines or TUM's ``t x y z qx qy qz qw`` (``#``
+comments allowed), e.g. ``out.bag.gt.txt`` from ``python -m fastslam.carmen_to_bag`` and a
+SLAM run's trajectory; a relations file ``t1 t2 x y z roll pitch yaw`` lines. See
 :mod:`fastslam.eval.trajectory` for the definitions.
 """
 from __future__ import annotations
@@ -12,8 +15,8 @@ import argparse
 import json
 import sys
 
-from fastslam.eval.trajectory import TrajectoryScores, score
-from fastslam.io.trajectory_files import TrajectoryError, read_trajectory
+from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score
+from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory
 
 
 def format_table(s: TrajectoryScores) -> str:
@@ -27,18 +30,38 @@ def format_table(s: TrajectoryScores) -> str:
     return "\n".join(f"{k:<{width}}  {v:>10}" for k, v in rows)
 
 
+def format_relations(s: RelationScores) -> str:
+    """Human-readable relations metric: mean +- std (max) per error."""
+    rows = [("relations", f"{s.relations} ({s.outside} outside the estimate's time span, clamped)"),
+            ("translation [m]", f"{s.trans_mean:.4f} +- {s.trans_std:.4f} (max {s.trans_max:.4f})"),
+            ("rotation [deg]", f"{s.rot_mean:.4f} +- {s.rot_std:.4f} (max {s.rot_max:.4f})")]
+    return "\n".join(f"{k:<16} {v}" for k, v in rows)
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fastslam.evaluate", description=__doc__.split("\n")[0])
-    ap.add_argument("reference", help="reference trajectory (t x y theta)")
-    ap.add_argument("estimate", help="estimated trajectory (t x y theta)")
+    ap = argparse.ArgumentParser(prog="python -m fastslam.evaluate", description=__doc__.split("\n\n")[0])
+    ap.add_argument("files", nargs="+", metavar="REFERENCE ESTIMATE",
+                    help="reference and estimated trajectories; with --relations the estimate only")
+    ap.add_argument("--relations", metavar="FILE", help="score the estimate against these relations instead")
     ap.add_argument("--max-dt", type=float, default=0.05, help="nearest-time matching tolerance [s]")
     ap.add_argument("--interpolate", action="store_true", help="interpolate the reference instead")
     ap.add_argument("--delta", type=int, default=1, help="RPE over matched poses this many apart")
     ap.add_argument("--json", action="store_true", help="print the scores as JSON")
     args = ap.parse_args(argv)
+    wanted = 1 if args.relations else 2
+    if len(args.files) != wanted:
+        ap.error("--relations FILE takes one ESTIMATE" if args.relations else "expected REFERENCE ESTIMATE")
     try:
-        ref_t, ref = read_trajectory(args.reference)
-        est_t, est = read_trajectory(args.estimate)
+        if args.relations:
+            relations = read_relations(args.relations)
+            est_t, est = read_trajectory(args.files[0])
+            if len(est_t) == 0:
+                raise TrajectoryError(f"{args.files[0]}: no poses")
+            r = relations_score(est_t, est, relations)
+            print(json.dumps(r.as_dict(), indent=2) if args.json else format_relations(r))
+            return 0
+        ref_t, ref = read_trajectory(args.files[0])
+        est_t, est = read_trajectory(args.files[1])
     except TrajectoryError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

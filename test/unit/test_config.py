@@ -90,3 +90,13 @@ def test_override_values_are_read_as_yaml():
     assert parse_override("l_free=-0.5") == ("l_free", -0.5)
     with pytest.raises(ConfigError, match="key=value"):
         parse_override("=3")
+
+
+def test_a_count_rejects_true_and_false_but_the_noise_switch_takes_them():
+    # `particles:=true` on a roslaunch line used to become 1 particle, silently
+    with pytest.raises(ConfigError, match="particles=True must be an integer, not true/false"):
+        SlamConfig.from_dict({"particles": True})
+    with pytest.raises(ConfigError, match="beam_step=False"):
+        SlamConfig.from_dict({"beam_step": False})
+    assert SlamConfig.from_dict({"toggle_noise": False}).toggle_noise == 0
+    assert SlamConfig.from_dict({"toggle_noise": True}).toggle_noise == 1

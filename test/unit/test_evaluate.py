@@ -60,3 +60,20 @@ def test_cli_options_change_the_matching(tmp_path, capsys):
     assert evaluate.main([ref, est, "--interpolate", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["matched"] == 2 and out["ate_max"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_cli_relations_json_and_tum_estimate(tmp_path, capsys, relations_case):
+    write_trajectory(tmp_path / "est.tum", relations_case.t, relations_case.poses, fmt="tum")
+    assert evaluate.main(["--relations", str(relations_case.path), str(tmp_path / "est.tum"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["relations"] == 2 and out["trans_mean"] == pytest.approx(0.25, abs=1e-12)
+    assert out["rot_max"] == pytest.approx(45.0, abs=1e-9)
+
+
+def test_cli_relations_errors(tmp_path, capsys, relations_case):
+    write_trajectory(tmp_path / "est.txt", relations_case.t, relations_case.poses)
+    (tmp_path / "bad.relations").write_text("1 2 3\n")
+    assert evaluate.main(["--relations", str(tmp_path / "bad.relations"), str(tmp_path / "est.txt")]) == 2
+    assert "bad.relations:1" in capsys.readouterr().err
+    assert evaluate.main(["--relations", str(tmp_path / "none"), str(tmp_path / "est.txt")]) == 2
+    assert "cannot read relations" in capsys.readouterr().err

@@ -30,12 +30,13 @@ def test_metadata_of_num_and_choice():
 def test_coerce_converts_what_is_meant():
     assert coerce(Demo, {"count": 4.0, "gain": 1, "flag": 1, "mode": "b", "limit": None, "names": ["x"]}) == \
         {"count": 4, "gain": 1.0, "flag": True, "mode": "b", "limit": None, "names": ["x"]}
-    out = coerce(Demo, {"count": True, "limit": 2})
-    assert out == {"count": 1, "limit": 2.0} and type(out["count"]) is int and type(out["limit"]) is float
+    out = coerce(Demo, {"count": 7.0, "limit": 2})
+    assert out == {"count": 7, "limit": 2.0} and type(out["count"]) is int and type(out["limit"]) is float
 
 
 @pytest.mark.parametrize("values, message", [
     ({"count": 2.5}, "count=2.5 must be an integer"),
+    ({"count": True}, "count=True must be an integer, not true/false"),
     ({"count": "3"}, "count='3' must be an integer"),
     ({"gain": True}, "gain=True must be a number"),
     ({"flag": "yes"}, "flag='yes' must be true or false"),
@@ -67,3 +68,12 @@ def test_check_fields_accepts_the_bounds_and_none():
     check_fields(Demo(count=1, gain=1.0, limit=None))
     check_fields(Demo(count=10, gain=0.0, mode="b"))
     assert issubclass(ConfigError, ValueError)
+
+
+@dataclass(frozen=True)
+class Switch:
+    on: int = num(1, 0, 1, "a 0/1 switch")
+
+
+def test_a_zero_one_switch_takes_true_and_false():
+    assert coerce(Switch, {"on": False}) == {"on": 0} and coerce(Switch, {"on": True}) == {"on": 1}

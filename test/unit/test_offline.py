@@ -48,10 +48,15 @@ def test_write_results(tmp_path, room_ranges):
     result = offline.run_bag(records(room_ranges), cfg)
     offline.write_results(tmp_path / "out", result, cfg)
     out = tmp_path / "out"
-    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "map.pgm", "map.png", "map.yaml",
-                                                    "stats.json", "trajectory.txt"]
+    assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "live_poses.txt", "map.pgm", "map.png",
+                                                    "map.yaml", "stats.json", "trajectory.txt",
+                                                    "trajectory_scans.txt"]
     t, poses = read_trajectory(out / "trajectory.txt")
     np.testing.assert_array_equal(np.c_[t, poses], result.slam.trajectory())
+    # the two scans the filter saw were both processed: every-scan files are the trajectory itself
+    for name in ("trajectory_scans.txt", "live_poses.txt"):
+        t, poses = read_trajectory(out / name)
+        np.testing.assert_array_equal(np.c_[t, poses], result.slam.trajectory())
     occ, res, origin = load_map(out / "map.yaml")
     assert occ.shape == result.slam.grid.shape and res == 0.05
     assert origin == (float(result.slam.grid.origin[0]), float(result.slam.grid.origin[1]), 0.0)

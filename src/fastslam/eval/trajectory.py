@@ -7,6 +7,11 @@
 - RPE: error of the relative motion between matched poses ``delta`` apart (default 1 =
   consecutive matched poses), ``E = (ref_i^-1 ref_j)^-1 (est_i^-1 est_j)``; translation
   as RMS of |E_xy| [m], rotation as RMS of |E_theta| [deg]. It needs no alignment.
+- Relations (Kuemmerle et al. 2009, as Cartographer computes them): for each given
+  true motion ``expected`` from the pose at t1 to the pose at t2 (in the t1 frame),
+  ``E = (pose(t1)^-1 pose(t2)) expected^-1``; mean and standard deviation (n - 1) of
+  |E_xy| [m] and of |E_theta| [deg]. Poses are interpolated between the estimate's
+  stamps and clamped at its ends.
 All poses are (N, 3) float64 (x, y, theta) [m, m, rad].
 """
 from __future__ import annotations
@@ -134,3 +139,56 @@ def score(ref_t: ArrayLike, ref: ArrayLike, est_t: ArrayLike, est: ArrayLike, *,
         matched=len(r), ate_rmse=float(np.sqrt(np.mean(err ** 2))) if len(err) else nan,
         ate_mean=float(err.mean()) if len(err) else nan, ate_max=float(err.max()) if len(err) else nan,
         rpe_trans=trans, rpe_rot=rot, rpe_delta=delta)
+
+
+def interpolate_poses(times: ArrayLike, poses: ArrayLike, query: ArrayLike) -> NDArray[np.float64]:
+    """(Q, 3) poses at times query (Q,): linear between the (T,) ascending stamps of
+    poses (T, 3), the heading the short way round, clamped to the first and last pose."""
+    t = np.asarray(times, dtype=np.float64).reshape(-1)
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    q = np.asarray(query, dtype=np.float64).reshape(-1)
+    heading = np.interp(q, t, np.unwrap(p[:, 2]))  # np.interp clamps at the ends
+    return np.stack([np.interp(q, t, p[:, 0]), np.interp(q, t, p[:, 1]), wrap_angle(heading)], axis=1)
+
+
+def relation_errors(times: ArrayLike, poses: ArrayLike, relations: ArrayLike) -> NDArray[np.float64]:
+    """(R, 3) error poses (pose(t1)^-1 pose(t2)) expected^-1 of relations (R, 5) rows
+    t1, t2, x, y, yaw against the estimate (times (T,), poses (T, 3))."""
+    rel = np.asarray(relations, dtype=np.float64).reshape(-1, 5)
+    a = interpolate_poses(times, poses, rel[:, 0])
+    b = interpolate_poses(times, poses, rel[:, 1])
+    return compose(relative(a, b), inverse(rel[:, 2:5]))
+
+
+@dataclass(frozen=True)
+class RelationScores:
+    """The Kuemmerle metric of one estimate: translation [m] and rotation [deg] errors."""
+
+    relations: int
+    outside: int         # relations with a stamp outside the estimate's span (clamped)
+    trans_mean: float    # [m]
+    trans_std: float
+    trans_max: float
+    rot_mean: float      # [deg]
+    rot_std: float
+    rot_max: float
+
+    def as_dict(self) -> dict[str, float | int]:
+        return asdict(self)
+
+
+def relations_score(times: ArrayLike, poses: ArrayLike, relations: ArrayLike) -> RelationScores:
+    """Mean, standard deviation (n - 1, as Cartographer) and maximum of the relation errors."""
+    t = np.asarray(times, dtype=np.float64).reshape(-1)
+    rel = np.asarray(relations, dtype=np.float64).reshape(-1, 5)
+    if len(t) == 0 or len(rel) == 0:
+        raise ValueError("no poses" if len(t) == 0 else "no relations")
+    err = relation_errors(t, poses, rel)
+    trans = np.hypot(err[:, 0], err[:, 1])
+    rot = np.degrees(np.abs(err[:, 2]))
+    outside = int(np.count_nonzero((rel[:, :2].min(axis=1) < t[0]) | (rel[:, :2].max(axis=1) > t[-1])))
+    ddof = 1 if len(rel) > 1 else 0
+    return RelationScores(relations=len(rel), outside=outside,
+                          trans_mean=float(trans.mean()), trans_std=float(trans.std(ddof=ddof)),
+                          trans_max=float(trans.max()), rot_mean=float(rot.mean()),
+                          rot_std=float(rot.std(ddof=ddof)), rot_max=float(rot.max()))

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fastslam.filter.odom_buffer import OdomBuffer
-from fastslam.filter.scan import Scan
+from fastslam.filter.scan import Scan, fov_problem
 from fastslam.filter.slam import FastSlam, StepInfo
 
 
@@ -40,6 +40,8 @@ class Frontend:
         self.odom = OdomBuffer(self.odom_buffer)
         self.last_stamp: float | None = None
         self.last_odom: NDArray[np.float64] | None = None  # odometry pose of the last processed scan
+        self.scan_odom: NDArray[np.float64] | None = None  # odometry pose of the last scan the filter saw
+        self.resets = 0
         self._rebase = False
 
     def add_odom(self, t: float, pose: NDArray[np.float64]) -> None:
@@ -65,6 +67,9 @@ class Frontend:
         t = scan.stamp
         if not t > 0:
             raise Dropped("scan stamped zero")
+        problem = fov_problem(scan, self.slam.cfg)
+        if problem:
+            raise Dropped(problem)
         if self.last_stamp is not None and t < self.last_stamp:
             self.events.append(f"resetting the filter: time went backwards ({self.last_stamp:.2f} -> "
                                f"{t:.2f} s): bag restarted or looped?")
@@ -81,6 +86,7 @@ class Frontend:
             self._rebase = False
         info = self.slam.step(odom, scan)
         self.last_stamp = t
+        self.scan_odom = odom
         if info.processed:
             self.last_odom = odom
         return info
@@ -90,4 +96,6 @@ class Frontend:
         self.odom.clear()
         self.last_stamp = None
         self.last_odom = None
+        self.scan_odom = None
         self._rebase = False
+        self.resets += 1

@@ -8,14 +8,19 @@ from numpy.typing import NDArray
 
 from fastslam.geometry import wrap_angle
 
+# Samples kept at most, whatever their stamps: a driver whose stamps freeze would
+# otherwise grow the buffer without end (10 s of odometry at 1 kHz fit).
+MAX_SAMPLES = 10_000
+
 
 class OdomBuffer:
-    """Time-ordered (t, x, y, theta) samples covering the last `span` seconds."""
+    """Time-ordered (t, x, y, theta) samples covering the last `span` seconds, at most
+    max_samples of them."""
 
-    def __init__(self, span: float = 10.0) -> None:
+    def __init__(self, span: float = 10.0, max_samples: int = MAX_SAMPLES) -> None:
         self.span = span
-        self._t: deque[float] = deque()
-        self._p: deque[NDArray[np.float64]] = deque()
+        self._t: deque[float] = deque(maxlen=max_samples)
+        self._p: deque[NDArray[np.float64]] = deque(maxlen=max_samples)
 
     def __len__(self) -> int:
         return len(self._t)

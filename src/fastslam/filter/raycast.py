@@ -347,6 +347,8 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
     """
     ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
+    if m == 0:  # no beam in the field of view: nothing to trace
+        return np.empty((n_p, 0)) if expected else None
     k_guess = int(max_range / grid.resolution) + 2
     per_chunk = max(1, CHUNK_ELEMENTS // (m * k_guess))
     out = np.empty((n_p, m)) if expected else None

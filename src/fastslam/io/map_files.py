@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -92,8 +93,9 @@ def _atomic_write_all(files: list[tuple[Path, bytes]]) -> None:
 
 def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.integer[Any]],
              resolution: float, origin: tuple[float, float, float], *,
-             occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH) -> tuple[Path, Path]:
-    """Write ``<stem>.pgm`` and ``<stem>.yaml`` in map_server format.
+             occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH,
+             versioned: bool = False) -> tuple[Path, Path]:
+    """Write ``<stem>.pgm`` and ``<stem>.yaml`` in map_server format, the YAML last.
 
     Args:
         path_stem_or_yaml: ``maps/intel`` or ``maps/intel.yaml`` (``.pgm`` also accepted).
@@ -101,6 +103,10 @@ def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.in
         resolution: cell size [m].
         origin: (x, y, yaw) of cell (0, 0)'s lower-left corner in the map frame [m, m, rad].
         occupied_thresh, free_thresh: written to the YAML for map_server's reading rule.
+        versioned: the image gets a new unique name (``<stem>.saved-<random>.pgm``) and the
+            previous one is removed once the YAML points to the new one: a save killed
+            at any moment leaves a YAML and the image it names (saves that overwrite
+            a map in use, as the node's do).
 
     Returns:
         (pgm_path, yaml_path).
@@ -112,20 +118,81 @@ def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.in
     if occ.ndim != 2:
         raise ValueError(f"occupancy must be (H, W), got shape {occ.shape}")
     pgm_path, yaml_path = _paths(path_stem_or_yaml)
+    if versioned:
+        with _SAVE_LOCK:  # one versioned save at a time: each removes the image before it
+            return _save_versioned(yaml_path, occ, resolution, origin, occupied_thresh, free_thresh)
+    meta = _meta(pgm_path.name, resolution, origin, occupied_thresh, free_thresh)
+    _atomic_write_all([(pgm_path, _pgm_bytes(occ, resolution)), (yaml_path, _yaml_bytes(meta))])
+    return pgm_path, yaml_path
+
+
+_SAVE_LOCK = threading.Lock()
+VERSIONED = ".saved-"  # versioned images: <stem>.saved-<random>.pgm
+
+
+def _pgm_bytes(occ: NDArray[np.integer[Any]], resolution: float) -> bytes:
     h, w = occ.shape
     header = f"P5\n# CREATOR: fastslam.io.map_files {resolution:.3f} m/pix\n{w} {h}\n255\n".encode("ascii")
-    meta = {
-        "image": pgm_path.name,       # relative, so the pair can be moved together
-        "resolution": float(resolution),
-        "origin": [float(origin[0]), float(origin[1]), float(origin[2])],
-        "negate": 0,
-        "occupied_thresh": float(occupied_thresh),
-        "free_thresh": float(free_thresh),
-        "mode": "trinary",
-    }
-    _atomic_write_all([(pgm_path, header + occupancy_to_pixels(occ).tobytes()),
-                       (yaml_path, yaml.safe_dump(meta, sort_keys=False).encode("utf-8"))])
+    return header + occupancy_to_pixels(occ).tobytes()
+
+
+def _yaml_bytes(meta: dict[str, Any]) -> bytes:
+    return yaml.safe_dump(meta, sort_keys=False).encode("utf-8")
+
+
+def _meta(image: str, resolution: float, origin: tuple[float, float, float], occupied_thresh: float,
+          free_thresh: float) -> dict[str, Any]:
+    return {"image": image,             # relative, so the pair can be moved together
+            "resolution": float(resolution),
+            "origin": [float(origin[0]), float(origin[1]), float(origin[2])],
+            "negate": 0, "occupied_thresh": float(occupied_thresh), "free_thresh": float(free_thresh),
+            "mode": "trinary"}
+
+
+def _image_of(yaml_path: Path) -> Path | None:
+    """The image an existing map YAML names, or None."""
+    try:
+        image = yaml.safe_load(yaml_path.read_text()).get("image")
+    except (OSError, AttributeError, yaml.YAMLError):
+        return None
+    return yaml_path.parent / str(image) if image else None
+
+
+def _save_versioned(yaml_path: Path, occ: NDArray[np.integer[Any]], resolution: float,
+                    origin: tuple[float, float, float], occupied_thresh: float, free_thresh: float
+                    ) -> tuple[Path, Path]:
+    stem = yaml_path.name[:-len(yaml_path.suffix)]
+    before = _image_of(yaml_path)
+    try:
+        fd, name = tempfile.mkstemp(prefix=f"{stem}{VERSIONED}", suffix=".pgm", dir=yaml_path.parent)
+        os.close(fd)
+    except OSError as err:
+        raise MapSaveError(f"cannot write map file in {yaml_path.parent}: {err.strerror or err}") from err
+    pgm_path = Path(name)
+    try:
+        _atomic_write_all([(pgm_path, _pgm_bytes(occ, resolution))])
+        meta = _meta(pgm_path.name, resolution, origin, occupied_thresh, free_thresh)
+        _atomic_write_all([(yaml_path, _yaml_bytes(meta))])   # the moment the new map is the map
+    except BaseException:
+        _discard(str(pgm_path))
+        raise
+    if before is not None and before != pgm_path and before.name.startswith(f"{stem}{VERSIONED}"):
+        _discard(str(before))
     return pgm_path, yaml_path
+
+
+def remove_stale(path_stem_or_yaml: str | os.PathLike[str]) -> list[Path]:
+    """Removes what killed saves of this map left: temporary files and versioned images
+    its YAML does not name. Returns what was removed."""
+    pgm_path, yaml_path = _paths(path_stem_or_yaml)
+    stem = yaml_path.name[:-len(yaml_path.suffix)]
+    keep = _image_of(yaml_path)
+    folder = yaml_path.parent
+    stale = list(folder.glob(f".{stem}.*.tmp"))
+    stale += [p for p in folder.glob(f"{stem}{VERSIONED}*.pgm") if p != keep]
+    for p in stale:
+        _discard(str(p))
+    return stale
 
 
 def read_pgm(path: str | os.PathLike[str]) -> NDArray[np.uint8]:

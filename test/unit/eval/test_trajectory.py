@@ -6,7 +6,18 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.eval.trajectory import align_2d, apply_alignment, ate, ate_errors, match_by_time, rpe, score
+from fastslam.eval.trajectory import (
+    align_2d,
+    apply_alignment,
+    ate,
+    ate_errors,
+    interpolate_poses,
+    match_by_time,
+    relations_score,
+    rpe,
+    score,
+)
+from fastslam.io.trajectory_files import read_relations
 
 
 def loop(rng: np.random.Generator, n: int = 100) -> np.ndarray:
@@ -119,3 +130,24 @@ def test_nearest_time_matching_prefers_the_earlier_pose_on_a_tie():
     ref_t, ref = np.array([0.0, 1.0]), np.array([[0, 0, 0], [1, 0, 0]], float)
     _, r, _ = match_by_time(ref_t, ref, [0.5], np.zeros((1, 3)), max_dt=0.5)
     np.testing.assert_array_equal(r[:, 0], [0.0])
+
+
+def test_relations_metric_on_a_hand_made_case(relations_case):
+    s = relations_score(relations_case.t, relations_case.poses, read_relations(relations_case.path))
+    assert s.relations == 2 and s.outside == 2
+    # errors 0.5 and 0 m, 45 and 0 deg: mean, sample std (n - 1 = 1), max
+    assert s.trans_mean == pytest.approx(0.25, abs=1e-12)
+    assert s.trans_std == pytest.approx(math.sqrt(2 * 0.25 ** 2), abs=1e-12)
+    assert s.trans_max == pytest.approx(0.5, abs=1e-12)
+    assert s.rot_mean == pytest.approx(22.5, abs=1e-9)
+    assert s.rot_std == pytest.approx(math.sqrt(2 * 22.5 ** 2), abs=1e-9)
+    assert s.rot_max == pytest.approx(45.0, abs=1e-9)
+
+
+def test_interpolation_clamps_and_takes_the_short_way_round():
+    t = np.array([0.0, 1.0])
+    p = np.array([[0.0, 0.0, 3.0], [2.0, 4.0, -3.0]])
+    out = interpolate_poses(t, p, [-5.0, 0.5, 7.0])
+    np.testing.assert_allclose(out[[0, 2]], p, atol=1e-12)
+    np.testing.assert_allclose(out[1, :2], [1.0, 2.0])
+    assert abs(out[1, 2]) == pytest.approx(math.pi)

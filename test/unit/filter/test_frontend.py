@@ -84,3 +84,18 @@ def test_drop_key_counts_reasons_with_different_values_as_one():
     assert a == b == "no odometry at the scan's time (latest odometry is # s newer)"
     assert drop_key("no transform base -> 'laser' in tf: would extrapolate") == "no transform base -> 'laser' in tf"
     assert drop_key("odometry with NaN or inf") == "odometry with NaN or inf"
+
+
+def test_a_scan_with_no_beam_in_the_field_of_view_is_dropped_with_the_reason():
+    # the README's -30..30 degree tip with a laser mounted facing backwards
+    slam = FastSlam(SlamConfig(fov_min=-30, fov_max=30, seed=0))
+    fe = Frontend(slam)
+    fe.add_odom(1.0, np.zeros(3))
+    rear = Scan.from_laser(np.full(360, 1.0), -np.pi / 4, np.radians(0.25), 0.1, 3.5, mount=(0, 0, np.pi), stamp=1.0)
+    with pytest.raises(Dropped, match=r"no beam in the field of view fov_min..fov_max = -30..30 deg "
+                                      r"\(the scan sweeps from 135 to -135 deg"):
+        fe.add_scan(rear)
+    assert slam.updates == 0
+    # the filter itself survives such a scan too (drivers that bypass the frontend)
+    assert slam.step(np.zeros(3), rear).processed
+    assert np.count_nonzero(slam.grid.logodds) == 0

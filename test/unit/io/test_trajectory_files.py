@@ -56,3 +56,14 @@ def test_writing_needs_one_pose_per_time(tmp_path):
     with pytest.raises(ValueError, match="3 times but 2 poses"):
         write_trajectory(tmp_path / "w.txt", [0.0, 1.0, 2.0], np.zeros((2, 3)))
     assert not (tmp_path / "w.txt").exists()
+
+
+def test_tum_files_round_trip(tmp_path):
+    poses = loop(np.random.default_rng(4), 10)
+    path = write_trajectory(tmp_path / "a.tum", np.arange(10) * 0.5, poses, fmt="tum")
+    first = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")][0].split()
+    assert len(first) == 8 and first[3] == first[4] == first[5] == "0.0"
+    t, p = read_trajectory(path)
+    np.testing.assert_array_equal(t, np.arange(10) * 0.5)
+    np.testing.assert_allclose(p[:, :2], poses[:, :2], rtol=0, atol=0)
+    np.testing.assert_allclose(np.cos(p[:, 2] - poses[:, 2]), 1.0, atol=1e-12)

@@ -6,7 +6,17 @@ import numpy as np
 import pytest
 
 from fastslam.config import SlamConfig
-from fastslam.filter.scan import Beams, Scan, end_points, laser_problem, returns_subset, select_beams, spread_returns
+from fastslam.filter.scan import (
+    Beams,
+    Scan,
+    end_points,
+    fov_problem,
+    in_fov,
+    laser_problem,
+    returns_subset,
+    select_beams,
+    spread_returns,
+)
 
 
 def test_from_laser_turns_the_beams_by_the_mount():
@@ -66,6 +76,21 @@ def test_field_of_view_and_beam_step():
     np.testing.assert_allclose(np.degrees(b.angles), [-45, 0, 45, 90, 350])   # 350 deg is -10 deg
     b = select_beams(scan, SlamConfig(fov_min=-45.0, fov_max=90.0, beam_step=2))
     np.testing.assert_allclose(np.degrees(b.angles), [0, 90, 350])           # beams 2, 4, 6 of the scan
+
+
+def test_in_fov_wraps_and_includes_the_limits():
+    cfg = SlamConfig(fov_min=-30.0, fov_max=30.0)
+    deg = np.array([-30.0, 30.0, 30.5, 335.0, -335.0, 325.0, 180.0, 0.0])    # 335 is -25, -335 is 25
+    np.testing.assert_array_equal(in_fov(np.radians(deg), cfg), [True, True, False, True, True, False, False, True])
+
+
+def test_fov_problem_describes_the_sweep():
+    cfg = SlamConfig(fov_min=-30.0, fov_max=30.0)
+    rear = Scan.from_laser(np.ones(91), -np.pi / 4, np.radians(1.0), 0.1, 3.5, mount=(0.0, 0.0, np.pi))
+    assert fov_problem(rear, cfg) == ("no beam in the field of view fov_min..fov_max = -30..30 deg "
+                                      "(the scan sweeps from 135 to -135 deg in the base frame)")
+    front = Scan.from_laser(np.ones(91), -np.pi / 4, np.radians(1.0), 0.1, 3.5)
+    assert fov_problem(front, cfg) is None
 
 
 def _beams(hit: np.ndarray) -> Beams:

@@ -137,7 +137,12 @@ class SlamConfig:
     def from_yaml(cls, path: builtins.str | Path, overrides: Mapping[builtins.str, Any] | None = None) -> SlamConfig:
         import yaml  # only file loading needs it
 
-        data = yaml.safe_load(Path(path).read_text()) or {}
+        try:
+            data = yaml.safe_load(Path(path).read_text()) or {}
+        except yaml.YAMLError as err:
+            where = getattr(err, "problem_mark", None)
+            line = f" line {where.line + 1}" if where is not None else ""
+            raise ConfigError(f"{path}:{line}: not valid YAML ({getattr(err, 'problem', None) or err})") from None
         if not isinstance(data, dict):
             raise ConfigError(f"{path}: expected a mapping of parameters, got {type(data).__name__}")
         data.update(overrides or {})

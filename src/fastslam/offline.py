@@ -37,6 +37,7 @@ from fastslam.geometry import compose, inverse, relative
 from fastslam.io.bag_reader import BagData, read_bag
 from fastslam.io.map_files import save_map
 from fastslam.io.records import BagError, OdomRecord
+from fastslam.io.staging import staged_folder
 from fastslam.io.trajectory_files import FORMATS, write_trajectory
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "slam.yaml"
@@ -142,9 +143,9 @@ def _progress(done: int, total: int, wall: float, bag_span: float) -> None:
 
 
 def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = "xytheta") -> None:
+    """Writes every output into the folder out (which exists)."""
     import yaml
 
-    out.mkdir(parents=True, exist_ok=True)
     slam = result.slam
     grid = slam.grid
     occ = slam.best_occupancy()
@@ -167,6 +168,17 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
 
 
+class NothingUsable(ValueError):
+    """The bag holds nothing the filter can use; str() says why."""
+
+
+def _check_usable(data: BagData) -> None:
+    if not data.scans:
+        raise NothingUsable(f"the bag has no scans on {data.scan_topic}")
+    if not data.odoms:
+        raise NothingUsable(f"the bag has no odometry on {data.odom_topic}: the filter needs both")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m fastslam.offline", description=__doc__.split("\n\n")[0])
     parser.add_argument("bag", help="ROS 1 bag with LaserScan and Odometry (and tf)")
@@ -180,20 +192,37 @@ def main(argv: list[str] | None = None) -> int:
                         help="trajectory files: t x y theta (default) or TUM's t x y z qx qy qz qw")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    out = Path(args.out)
     try:
         overrides = dict(parse_override(s) for s in args.set)
         if args.seed is not None:
             overrides["seed"] = args.seed
         cfg = SlamConfig.from_yaml(args.config, overrides)
-        data = read_bag(args.bag, args.scan_topic, args.odom_topic)
-    except (ConfigError, BagError, OSError) as err:
+        with staged_folder(out) as work:   # checked before the run; filled only if it succeeds
+            data = read_bag(args.bag, args.scan_topic, args.odom_topic)
+            _check_usable(data)
+            for parent, child in data.bad_tf:
+                if not data.mount.found:
+                    raise BagError(f"the laser's mounting {data.mount.base_frame} -> {data.mount.laser_frame} "
+                                   f"cannot be read: tf {parent} -> {child} has a zero quaternion")
+                print(f"warning: tf {parent} -> {child} has a zero quaternion: ignored", file=sys.stderr)
+            if not data.mount.found:
+                print(f"warning: no tf from '{data.mount.base_frame}' to '{data.mount.laser_frame}' in the bag; "
+                      "assuming the laser sits at the base origin", file=sys.stderr)
+            result = run_bag(data, cfg, progress=not args.quiet)
+            if result.updates == 0:
+                why = ", ".join(f"{k} ({n})" for k, n in result.dropped.items()) or "none was due"
+                raise NothingUsable(f"none of the bag's {result.scans} scans could be used: {why}")
+            write_results(work, result, cfg, args.format)
+    except OSError as err:  # the message without "[Errno N]"
+        print(f"error: {err.strerror or err}" + (f": {err.filename}" if err.filename else ""), file=sys.stderr)
+        return 2
+    except (ConfigError, BagError, NothingUsable) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    if not data.mount.found:
-        print(f"warning: no tf from '{data.mount.base_frame}' to '{data.mount.laser_frame}' in the bag; "
-              "assuming the laser sits at the base origin", file=sys.stderr)
-    result = run_bag(data, cfg, progress=not args.quiet)
-    write_results(Path(args.out), result, cfg, args.format)
+    except KeyboardInterrupt:
+        print("interrupted: nothing written", file=sys.stderr)
+        return 130
     for event in result.events:
         print(f"warning: {event}", file=sys.stderr)
     s = result.stats()

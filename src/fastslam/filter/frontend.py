@@ -24,8 +24,8 @@ class Dropped(ValueError):
 
 def drop_key(why: str) -> str:
     """The kind of drop a reason names, to count by: without the detail after a colon
-    and with numbers replaced, so "latest odometry is +0.61 s" and "+0.72 s" count as one."""
-    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", why.split(":")[0]).strip()
+    or in parentheses, and with numbers replaced, so "latest odometry is +0.61 s" and "+0.72 s" count as one."""
+    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", re.split(r"[:(]", why)[0]).strip()
 
 
 @dataclass

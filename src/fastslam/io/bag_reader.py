@@ -37,6 +37,7 @@ class BagData:
     scan_topic: str
     odom_topic: str
     topics: dict[str, str] = field(default_factory=dict)  # topic -> message type
+    bad_tf: list[tuple[str, str]] = field(default_factory=list)  # (parent, child) seen only with a zero quaternion
 
     def records(self) -> Iterator[ScanRecord | OdomRecord]:
         """Scans and odometry merged in time order; odometry first on equal stamps,
@@ -111,6 +112,7 @@ def read_bag(path: str | os.PathLike[str], scan_topic: str | None = None,
     odoms: list[OdomRecord] = []
     static_edges: dict[tuple[str, str], NDArray[np.float64]] = {}
     dynamic_edges: dict[tuple[str, str], NDArray[np.float64]] = {}
+    bad_tf: set[tuple[str, str]] = set()
     try:
         with AnyReader([path], default_typestore=get_typestore(Stores.ROS1_NOETIC)) as reader:
             topics = {c.topic: c.msgtype for c in reader.connections}
@@ -127,9 +129,20 @@ def read_bag(path: str | os.PathLike[str], scan_topic: str | None = None,
                 elif conn.msgtype == TF_TYPE:
                     edges = static_edges if conn.topic == "/tf_static" else dynamic_edges
                     for tf in msg.transforms:
-                        edges.setdefault((tf.header.frame_id, tf.child_frame_id), _tf_matrix(tf.transform))
+                        key = (tf.header.frame_id, tf.child_frame_id)
+                        if key in edges:
+                            continue
+                        try:
+                            edges[key] = _tf_matrix(tf.transform)
+                        except ValueError:  # a zero quaternion: the edge is unusable, not the bag
+                            bad_tf.add(key)
     except AnyReaderError as err:
         raise BagError(f"cannot read bag {path}: {err}") from err
+    except BagError:
+        raise
+    except Exception as err:  # rosbags on what is not a ROS 1 bag (random bytes, MCAP, ROS 2)
+        raise BagError(f"{path} is not a readable ROS 1 bag ({type(err).__name__}: {err}); "
+                       "ROS 2 and MCAP bags are not supported") from None
     scans.sort(key=lambda s: s.t)
     odoms.sort(key=lambda o: o.t)
     base = odoms[0].child_frame_id if odoms else "base_link"
@@ -139,7 +152,8 @@ def read_bag(path: str | os.PathLike[str], scan_topic: str | None = None,
     edges = {k: v for k, v in dynamic_edges.items() if k[1] != base and k != (odom_frame, base)}
     edges.update(static_edges)
     return BagData(scans=scans, odoms=odoms, mount=laser_mount(edges, base, laser),
-                   scan_topic=scan_topic, odom_topic=odom_topic, topics=topics)
+                   scan_topic=scan_topic, odom_topic=odom_topic, topics=topics,
+                   bad_tf=sorted(bad_tf - set(edges)))
 
 
 def _scan_record(msg: Any) -> ScanRecord:

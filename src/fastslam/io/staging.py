@@ -3,6 +3,7 @@ final paths, renamed into place only when everything was written."""
 from __future__ import annotations
 
 import os
+import shutil
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -30,6 +31,39 @@ def staged(*finals: Path) -> Iterator[list[Path]]:
         for temp in temps:
             if temp.exists():
                 temp.unlink()
+        raise
+
+
+@contextmanager
+def staged_folder(final: Path) -> Iterator[Path]:
+    """Yields an empty temporary folder beside `final` (created first, so an output that
+    cannot be written fails before any work). When the block ends without an error its
+    files move into `final` (created if needed; files of the same names replaced);
+    otherwise the temporary folder is removed and `final` is not touched.
+
+    Raises:
+        OSError: `final` is a file, or its folder cannot be written.
+    """
+    final = Path(final)
+    if final.exists() and not final.is_dir():
+        raise NotADirectoryError(f"--out {final} is a file, not a folder")
+    work = partial_path(final)
+    try:
+        final.parent.mkdir(parents=True, exist_ok=True)
+        work.mkdir()
+    except OSError as err:
+        raise OSError(err.errno, f"cannot write the output folder {final}: {err.strerror}") from None
+    try:
+        yield work
+        try:
+            final.mkdir(exist_ok=True)
+            for item in sorted(work.iterdir()):
+                os.replace(item, final / item.name)
+            work.rmdir()
+        except OSError as err:
+            raise OSError(err.errno, f"cannot move the results into {final}: {err.strerror}") from None
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
         raise
 
 

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+from typing import Any
 
 from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score
 from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory
@@ -51,6 +53,10 @@ def main(argv: list[str] | None = None) -> int:
     wanted = 1 if args.relations else 2
     if len(args.files) != wanted:
         ap.error("--relations FILE takes one ESTIMATE" if args.relations else "expected REFERENCE ESTIMATE")
+    if args.delta < 1 or not args.max_dt >= 0:
+        print(f"error: --delta must be at least 1 (got {args.delta}) and --max-dt at least 0 (got {args.max_dt})",
+              file=sys.stderr)
+        return 2
     try:
         if args.relations:
             relations = read_relations(args.relations)
@@ -58,8 +64,7 @@ def main(argv: list[str] | None = None) -> int:
             if len(est_t) == 0:
                 raise TrajectoryError(f"{args.files[0]}: no poses")
             r = relations_score(est_t, est, relations)
-            print(json.dumps(r.as_dict(), indent=2) if args.json else format_relations(r))
-            return 0
+            return _report(r.as_dict(), format_relations(r), args.json)
         ref_t, ref = read_trajectory(args.files[0])
         est_t, est = read_trajectory(args.files[1])
     except TrajectoryError as err:
@@ -69,7 +74,18 @@ def main(argv: list[str] | None = None) -> int:
     if s.matched == 0:
         print(f"error: no estimate pose within {args.max_dt} s of a reference pose", file=sys.stderr)
         return 1
-    print(json.dumps(s.as_dict(), indent=2) if args.json else format_table(s))
+    return _report(s.as_dict(), format_table(s), args.json)
+
+
+def _report(scores: dict[str, Any], table: str, as_json: bool) -> int:
+    """Prints the scores; exit 1 with a clear line when one is not a number (too few
+    poses for it), and JSON with null in its place (JSON has no NaN)."""
+    missing = [k for k, v in scores.items() if isinstance(v, float) and not math.isfinite(v)]
+    clean = {k: (None if k in missing else v) for k, v in scores.items()}
+    print(json.dumps(clean, indent=2, allow_nan=False) if as_json else table)
+    if missing:
+        print(f"error: {', '.join(missing)} could not be computed (too few matched poses?)", file=sys.stderr)
+        return 1
     return 0
 
 

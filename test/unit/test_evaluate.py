@@ -77,3 +77,30 @@ def test_cli_relations_errors(tmp_path, capsys, relations_case):
     assert "bad.relations:1" in capsys.readouterr().err
     assert evaluate.main(["--relations", str(tmp_path / "none"), str(tmp_path / "est.txt")]) == 2
     assert "cannot read relations" in capsys.readouterr().err
+
+
+def test_scores_that_cannot_be_computed_exit_1_with_valid_json(tmp_path, capsys):
+    (tmp_path / "ref.txt").write_text("1 0 0 0\n2 1 0 0\n")
+    (tmp_path / "one.txt").write_text("1 0 0 0\n")          # one matched pose: no relative error
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "one.txt"), "--json"]) == 1
+    out, err = capsys.readouterr()
+    scores = json.loads(out)                                 # NaN would not parse as JSON
+    assert scores["rpe_trans"] is None and scores["rpe_rot"] is None and scores["ate_rmse"] == 0.0
+    assert err.strip() == "error: rpe_trans, rpe_rot could not be computed (too few matched poses?)"
+
+
+def test_binary_files_and_bad_options_are_one_line_errors(tmp_path, capsys):
+    (tmp_path / "ref.txt").write_text("1 0 0 0\n2 1 0 0\n")
+    (tmp_path / "bin.txt").write_bytes(bytes(range(256)))
+    (tmp_path / "nan.txt").write_text("1 0 0 0\n2 nan 0 0\n")
+    cases = [([str(tmp_path / "ref.txt"), str(tmp_path / "bin.txt")], f"error: {tmp_path / 'bin.txt'} is not a "
+              "text file of trajectory lines"),
+             ([str(tmp_path / "ref.txt"), str(tmp_path / "nan.txt")], f"error: {tmp_path / 'nan.txt'}:2: NaN or "
+              "infinite values: '2 nan 0 0'"),
+             ([str(tmp_path / "ref.txt"), str(tmp_path / "ref.txt"), "--delta", "0"],
+              "error: --delta must be at least 1 (got 0) and --max-dt at least 0 (got 0.05)"),
+             (["--relations", str(tmp_path / "bin.txt"), str(tmp_path / "ref.txt")],
+              f"error: {tmp_path / 'bin.txt'} is not a text file of relations lines")]
+    for args, line in cases:
+        assert evaluate.main(args) == 2
+        assert capsys.readouterr().err.strip() == line

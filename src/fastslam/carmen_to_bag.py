@@ -14,9 +14,9 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.eval.trajectory import ate
 from fastslam.io.bag_writer import BagWriter
@@ -26,6 +26,9 @@ from fastslam.io.staging import staged
 from fastslam.io.trajectory_files import write_trajectory
 from fastslam.sim.odometry_noise import DEFAULT_ALPHAS, OdomNoise, noisy_odometry
 from fastslam.transforms import StaticTransform
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 @dataclass(frozen=True)

@@ -23,10 +23,9 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.config import ConfigError, SlamConfig, parse_override
 from fastslam.eval.render import render_map, write_png
@@ -38,6 +37,10 @@ from fastslam.io.bag_reader import BagData, read_bag
 from fastslam.io.map_files import save_map
 from fastslam.io.records import BagError, OdomRecord
 from fastslam.io.trajectory_files import FORMATS, write_trajectory
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "slam.yaml"
 

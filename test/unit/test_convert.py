@@ -11,6 +11,8 @@ from sensor_msgs.msg import LaserScan
 from assign5.convert import BadMessage, check_scan, grid_msgs, mount_from_transform, odom_pose, scan_from_msg
 from fastslam.filter.grid import GridMaps
 
+pytestmark = pytest.mark.ros
+
 
 def transform(x, y, q):
     t = TransformStamped()

@@ -121,7 +121,8 @@ def _save_as_unprivileged(folder):
             code = 1
         finally:
             os._exit(code)
-    return os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+    status = os.waitpid(pid, 0)[1]
+    return os.WEXITSTATUS(status) if os.WIFEXITED(status) else -1   # (os.waitstatus_to_exitcode is 3.9)
 
 
 def test_read_only_folder(tmp_path):

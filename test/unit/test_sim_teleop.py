@@ -54,6 +54,7 @@ def test_ramp_moves_half_a_step_per_loop() -> None:
     assert "linear vel 0.03" in status_line(s)
 
 
+@pytest.mark.ros  # the executable imports rospy
 def test_refuses_without_a_terminal() -> None:
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     out = subprocess.run([sys.executable, str(ROOT / "src" / "teleop_key.py")], stdin=subprocess.DEVNULL,

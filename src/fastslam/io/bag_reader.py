@@ -10,13 +10,16 @@ import os
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import TYPE_CHECKING, Any, Iterator
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.io.records import ROSBAGS_HINT, BagError, OdomRecord, ScanRecord
 from fastslam.transforms import LaserMount, mount_from_matrix, transform_matrix
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 __all__ = ["BagData", "BagError", "OdomRecord", "ScanRecord", "laser_mount", "read_bag"]
 

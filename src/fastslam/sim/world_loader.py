@@ -9,15 +9,17 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-from numpy.typing import NDArray
 
 from fastslam.geometry import transform_points
 from fastslam.io.map_files import MapLoadError, read_pgm, trinary
 from fastslam.sim.world import World, WorldError, world_from_dict
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 def mask_segments(occ: NDArray[np.bool_], resolution: float, origin: tuple[float, float, float]) -> NDArray[np.float64]:

@@ -13,7 +13,7 @@ from fastslam.io.map_files import MapLoadError, MapSaveError, load_map, save_map
 
 # grid row 0 (bottom) = [-1, 0, 25], row 1 (top) = [26, 65, 100]
 OCC = np.array([[-1, 0, 25], [26, 65, 100]], dtype=np.int8)
-HEADER = b"P5\n# CREATOR: fastslam.io.map_files 0.050 m/pix\n3 2\n255\n"
+HEADER = b"P5\n3 2\n255\n"   # Pillow's, as map_server reads it
 # image rows top first: grid row 1 -> 205 0 0, then grid row 0 -> 205 254 254
 PIXELS = bytes([205, 0, 0, 205, 254, 254])
 
@@ -138,3 +138,51 @@ def test_read_only_folder(tmp_path):
 def test_rejects_non_2d(tmp_path):
     with pytest.raises(ValueError, match="shape"):
         save_map(tmp_path / "m", np.zeros(5, np.int8), 0.1, (0, 0, 0))
+
+
+def _load(tmp_path, name, data, negate=0):
+    (tmp_path / name).write_bytes(data)
+    (tmp_path / "x.yaml").write_text(f"image: {name}\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: {negate}\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n")
+    return load_map(tmp_path / "x.yaml")[0]
+
+
+# p = (maxval - v) / maxval: 1.0, 0.7, 0.5, 0.1, 0.0 -> occupied, occupied, unknown, free, free
+EXPECTED_ROW = [[100, 100, -1, 0, 0]]
+
+
+def test_pgm_with_maxval_100_reads_by_its_own_scale(tmp_path):
+    occ = _load(tmp_path, "a.pgm", b"P5\n5 1\n100\n" + bytes([0, 30, 50, 90, 100]))
+    np.testing.assert_array_equal(occ, EXPECTED_ROW)
+
+
+def test_sixteen_bit_pgm_with_maxval_1000(tmp_path):
+    values = np.array([0, 300, 500, 900, 1000], dtype=">u2")
+    occ = _load(tmp_path, "b.pgm", b"P5\n# 16 bit\n5 1\n1000\n" + values.tobytes())
+    np.testing.assert_array_equal(occ, EXPECTED_ROW)
+    np.testing.assert_array_equal(_load(tmp_path, "b.pgm", b"P5\n5 1\n1000\n" + values.tobytes(), negate=1),
+                                  [[0, -1, -1, 100, 100]])   # negate: p = v / maxval
+
+
+def test_png_map_averages_the_colour_channels_as_map_server(tmp_path):
+    from PIL import Image
+
+    rgba = np.array([[[0, 0, 0, 255], [255, 255, 0, 255], [254, 254, 254, 0]]], dtype=np.uint8)
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "c.png")
+    # yellow: mean 170 -> p = 0.33 -> unknown (Pillow's luma, 226, would say free);
+    # alpha is not part of the mean: a transparent white pixel is free
+    np.testing.assert_array_equal(_load(tmp_path, "c.png", (tmp_path / "c.png").read_bytes()), [[100, -1, 0]])
+
+
+def test_saved_pgm_opens_in_pillow_with_map_saver_pixels(tmp_path):
+    from PIL import Image
+
+    pgm, _ = save_map(tmp_path / "m", OCC, 0.05, (0.0, 0.0, 0.0))
+    with Image.open(pgm) as img:
+        assert (img.format, img.mode, img.size) == ("PPM", "L", (3, 2))
+        np.testing.assert_array_equal(np.asarray(img), np.frombuffer(PIXELS, np.uint8).reshape(2, 3))
+
+
+def test_unknown_image_is_a_map_load_error(tmp_path):
+    with pytest.raises(MapLoadError, match="cannot read image"):
+        _load(tmp_path, "d.pgm", b"not an image at all")

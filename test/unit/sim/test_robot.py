@@ -1,4 +1,4 @@
-"""Burger kinematics, clamps, collision stop, odometry noise switch, the tick clock."""
+"""Burger kinematics, clamps, collision stop, simulated odometry and its noise switch."""
 from __future__ import annotations
 
 import math
@@ -6,10 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.config import ConfigError
 from fastslam.geometry import relative
 from fastslam.sim.robot import DiffDrive, OdometryModel, clamp_cmd, integrate
-from fastslam.sim.sim import SimConfig, Simulation
 from fastslam.sim.world import world_from_dict
 
 WALL = world_from_dict({"segments": [[[1.0, -5.0], [1.0, 5.0]]]})
@@ -74,30 +72,3 @@ def test_noisy_odometry_drifts_and_is_seeded() -> None:
     np.testing.assert_array_equal(a, b)
     assert a[0] == pytest.approx(2.0 * 1.1, rel=0.02)    # scale error: 10 % too far after 2 m
     assert not np.array_equal(a, run(1))
-
-
-def test_simulation_clock_rates_and_cmd_timeout() -> None:
-    world = world_from_dict({"circles": [[50, 50, 1]]})
-    sim = Simulation(world, SimConfig(odom_noise=False), np.random.default_rng(0))
-    sim.set_cmd(0.1, 0.0)
-    ticks = [sim.step() for _ in range(180)]              # 3 s at 60 Hz
-    assert sim.time == pytest.approx(3.0)
-    assert sum(t.scan is not None for t in ticks) == 15   # 5 Hz
-    assert sum(t.odom_due for t in ticks) == 90           # 30 Hz
-    # the command stopped after cmd_vel_timeout = 1 s (like turtlebot3_fake)
-    np.testing.assert_allclose(sim.robot.pose[0], 0.1 * 1.0, atol=0.1 / 60 + 1e-9)
-    np.testing.assert_allclose(sim.odom.pose, relative(sim.spawn, sim.robot.pose), atol=1e-12)
-
-
-def test_sim_config_errors_name_the_parameter() -> None:
-    with pytest.raises(ConfigError, match="speed"):
-        SimConfig.from_dict({"speed": 0.0})
-    with pytest.raises(ConfigError, match="no_return"):
-        SimConfig.from_dict({"no_return": "nan"})
-    with pytest.raises(ConfigError, match="unknown parameter 'sped'"):
-        SimConfig.from_dict({"sped": 2.0})
-    with pytest.raises(ConfigError, match="odom_noise"):
-        SimConfig.from_dict({"odom_noise": "yes"})
-    with pytest.raises(ConfigError, match="range_min"):
-        SimConfig.from_dict({"range_min": 4.0})
-    assert SimConfig.from_dict({"speed": 4, "seed": 3}).speed == 4.0

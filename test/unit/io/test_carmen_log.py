@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from fastslam.carmen_to_bag import increasing_times
 from fastslam.io.carmen_log import CarmenError, flaser_geometry, read_log
 
 SNIPPET = """\
@@ -93,6 +92,17 @@ def test_malformed_line_names_the_line(tmp_path):
         read_log(path)
 
 
-def test_times_are_made_strictly_increasing():
-    t = increasing_times(np.array([1.0, 2.0, 1.5, 1.9, 3.0, 3.0]), min_dt=0.01)
-    np.testing.assert_allclose(t, [1.0, 2.0, 2.01, 2.02, 3.0, 3.01])
+def test_laser_records_mount_is_the_laser_pose_in_the_robot_frame(log_path):
+    # ROBOTLASER1 line: robot at (1, 2) facing +y, laser at (1, 2.5) facing +y
+    s = read_log(log_path).scans[1]
+    np.testing.assert_allclose(s.mount, (0.5, 0.0, 0.0), atol=1e-12)
+
+
+def test_unknown_and_short_lines_are_skipped_or_named(tmp_path):
+    path = tmp_path / "odd.log"
+    path.write_text("SYNC 1 2\nODOM 1.0 2.0\n")
+    with pytest.raises(CarmenError, match="line 2: bad ODOM"):
+        read_log(path)
+    path.write_text("SYNC 1 2\nGPS whatever\n")
+    log = read_log(path)
+    assert log.scans == [] and log.odometry == [] and log.front_laser_offset == 0.0

@@ -1,9 +1,10 @@
+"""Frontend: odometry interpolated at each scan's stamp, kidnaps, time going backwards, drop reasons."""
 import numpy as np
 import pytest
 
 from fastslam.config import SlamConfig
 from fastslam.filter.frontend import Dropped, Frontend
-from fastslam.filter.scan import Scan, laser_problem
+from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
 
 ANGLES = np.radians(np.arange(0, 360, 10.0))
@@ -73,23 +74,6 @@ def test_time_going_backwards_resets():
     assert "time went backwards" in f.events[0] and f.slam.updates == 0
     f.add_odom(0.5, np.zeros(3))
     assert f.add_scan(scan(0.5)).processed
-
-
-@pytest.mark.parametrize("args, problem", [
-    ((0, 0.0, 0.1, 0.1, 3.0), "empty scan"),
-    ((10, 0.0, 0.0, 0.1, 3.0), "angle_increment is 0"),
-    ((10, 0.0, float("nan"), 0.1, 3.0), "angle_increment is nan"),
-    ((10, 0.0, 0.1, 0.1, 0.0), "range_max=0.0 must exceed"),
-    ((10, 0.0, 0.1, 2.0, 1.0), "range_max=1.0 must exceed range_min=2.0"),
-    ((10, 0.0, 0.1, 0.1, 3.0, 2.0), "10 ranges but its angles imply 21"),
-])
-def test_laser_problems(args, problem):
-    assert problem in laser_problem(*args)
-
-
-def test_fence_post_and_reversed_scans_are_fine():
-    assert laser_problem(360, 0.0, 2 * np.pi / 360, 0.12, 3.5, 2 * np.pi) is None
-    assert laser_problem(360, 0.0, -np.pi / 180, 0.12, 3.5, -np.pi / 180 * 359) is None
 
 
 def test_drop_key_counts_reasons_with_different_values_as_one():

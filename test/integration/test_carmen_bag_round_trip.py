@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import gzip
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,20 +15,19 @@ from fastslam.io.bag_reader import read_bag
 from fastslam.io.carmen_log import read_log
 from fastslam.io.trajectory_files import read_trajectory
 
-pytest.importorskip("rosbags")
-
-# shared/ lies beside the repository (CI clones main next to it); /work/shared in a workplace
-INTEL = next((p for p in (Path(__file__).resolve().parents[2].parent / "shared" / "data" / "intel-corrected.log.gz",
-                          Path("/work/shared/data/intel-corrected.log.gz")) if p.is_file()),
-             Path("intel-corrected.log.gz"))
 N = 50
-needs_intel = pytest.mark.skipif(not INTEL.is_file(), reason="Intel log not available")
 
 
-def raw_flaser(n: int) -> list[list[str]]:
+@pytest.fixture(scope="session")
+def intel(dev_data):
+    """The Intel Research Lab log of the development data (the test fails if it is missing)."""
+    return dev_data("intel-corrected.log.gz")
+
+
+def raw_flaser(intel, n: int) -> list[list[str]]:
     """The first n FLASER lines split into fields, read independently of the parser."""
     rows = []
-    with gzip.open(INTEL, "rt") as f:
+    with gzip.open(intel, "rt") as f:
         for line in f:
             if line.startswith("FLASER "):
                 rows.append(line.split())
@@ -39,16 +37,15 @@ def raw_flaser(n: int) -> list[list[str]]:
 
 
 @pytest.fixture(scope="module")
-def intel_slice(tmp_path_factory):
+def intel_slice(tmp_path_factory, intel):
     out = tmp_path_factory.mktemp("intel") / "intel50.bag"
-    result = convert(read_log(INTEL, limit=N), out, odom_noise=0.0)
+    result = convert(read_log(intel, limit=N), out, odom_noise=0.0)
     return result, read_bag(out)
 
 
-@needs_intel
-def test_ranges_survive_the_round_trip(intel_slice):
+def test_ranges_survive_the_round_trip(intel_slice, intel):
     _, data = intel_slice
-    rows = raw_flaser(N)
+    rows = raw_flaser(intel, N)
     assert len(data.scans) == N
     for row, scan in zip(rows, data.scans):
         raw = np.array(row[2:182], dtype=np.float64)
@@ -60,10 +57,9 @@ def test_ranges_survive_the_round_trip(intel_slice):
     assert sum(np.isinf(s.ranges).sum() for s in data.scans) > 0    # the slice has no-returns
 
 
-@needs_intel
-def test_times_and_poses_survive_the_round_trip(intel_slice):
+def test_times_and_poses_survive_the_round_trip(intel_slice, intel):
     result, data = intel_slice
-    rows = raw_flaser(N)
+    rows = raw_flaser(intel, N)
     times = np.array([float(r[-1]) for r in rows])
     poses = np.array([[float(v) for v in r[185:188]] for r in rows])   # odom_x odom_y odom_theta
     assert np.all(np.diff(times) > 0)
@@ -78,11 +74,10 @@ def test_times_and_poses_survive_the_round_trip(intel_slice):
     np.testing.assert_array_equal(gt, poses)
 
 
-@needs_intel
-def test_cli_noise_is_deterministic_and_seeded(tmp_path, capsys):
+def test_cli_noise_is_deterministic_and_seeded(tmp_path, capsys, intel):
     def run(name: str, seed: int) -> np.ndarray:
         out = tmp_path / name
-        assert carmen_cli.main([str(INTEL), "--out", str(out), "--limit", "200",
+        assert carmen_cli.main([str(intel), "--out", str(out), "--limit", "200",
                                 "--odom-noise", "1", "--seed", str(seed)]) == 0
         return read_bag(out).odom_poses()
 
@@ -96,10 +91,9 @@ def test_cli_noise_is_deterministic_and_seeded(tmp_path, capsys):
     assert ate(gt, odo) > 0.1          # 200 scans of level-1 noise leave a visible drift
 
 
-@needs_intel
-def test_cli_refuses_to_overwrite(tmp_path, capsys):
+def test_cli_refuses_to_overwrite(tmp_path, capsys, intel):
     (tmp_path / "x.bag").write_bytes(b"old")
-    assert carmen_cli.main([str(INTEL), "--out", str(tmp_path / "x.bag"), "--limit", "3"]) == 1
+    assert carmen_cli.main([str(intel), "--out", str(tmp_path / "x.bag"), "--limit", "3"]) == 1
     assert "exists" in capsys.readouterr().err
     assert (tmp_path / "x.bag").read_bytes() == b"old"
 

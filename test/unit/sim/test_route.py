@@ -13,8 +13,6 @@ from fastslam.sim.sim import SimConfig, Simulation
 from fastslam.sim.world import WorldError
 from fastslam.sim.world_loader import load_world
 
-WORLDS = Path(__file__).resolve().parents[2] / "worlds"
-
 
 def test_turns_in_place_then_drives() -> None:
     f = RouteFollower(np.array([[0.0, 1.0]]))
@@ -53,10 +51,10 @@ def test_parse_route_forms_and_errors(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("name, t_min, t_max", [("turtlebot3_world", 60, 120), ("room", 40, 150),
                                                 ("office", 150, 400)])
-def test_shipped_routes_are_collision_free(name: str, t_min: float, t_max: float) -> None:
-    world = load_world(WORLDS / f"{name}.yaml")
+def test_shipped_routes_are_collision_free(name: str, t_min: float, t_max: float, worlds_dir: Path) -> None:
+    world = load_world(worlds_dir / f"{name}.yaml")
     sim = Simulation(world, SimConfig(range_noise=0.0), np.random.default_rng(0),
-                     route=load_route(str(WORLDS / f"{name}.route.yaml")))
+                     route=load_route(str(worlds_dir / f"{name}.route.yaml")))
     finished = False
     while not finished and sim.time < t_max:
         tick = sim.step()

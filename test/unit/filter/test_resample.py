@@ -1,26 +1,35 @@
+"""Low-variance resampling, the effective sample size, and slots that move least."""
+from __future__ import annotations
+
 import numpy as np
 import pytest
 
 from fastslam.filter.resample import low_variance_indices, neff, slot_parents
-from fastslam.filter.weights import assignment_log_weights, normalise_log
 
 
-def test_weight_by_hand():
-    # d = [1, 2], z = [1, 1]: ||d - z|| = 1, w = 1 / 2
-    log_w = assignment_log_weights(np.array([[1.0, 2.0]]), np.array([1.0, 1.0]), np.array([True, True]))
-    assert np.exp(log_w[0]) == pytest.approx(0.5)
+def test_style_guide_example_weights_0_1_0_resample_to_1_1_1():
+    idx = low_variance_indices(np.array([0.0, 1.0, 0.0]), np.random.default_rng(0))
+    assert list(idx) == [1, 1, 1]
 
 
-def test_invalid_beams_are_left_out_of_d_and_z():
-    d = np.array([[1.0, 2.0, 9.0], [1.0, 1.0, 0.0]])
-    z = np.array([1.0, 1.0, np.inf])
-    w = np.exp(assignment_log_weights(d, z, np.array([True, True, False])))
-    np.testing.assert_allclose(w, [0.5, 1.0])
-    np.testing.assert_allclose(normalise_log(np.log(w)), [1 / 3, 2 / 3])
+class FixedU0:
+    """A generator whose uniform draw is a given u0 (the one random number of the walk)."""
+
+    def __init__(self, u0: float) -> None:
+        self.u0 = u0
+
+    def uniform(self, low: float, high: float) -> float:
+        assert low == 0.0 and self.u0 < high
+        return self.u0
 
 
-def test_normalise_is_uniform_when_nothing_is_finite():
-    np.testing.assert_allclose(normalise_log(np.array([-np.inf, np.nan])), [0.5, 0.5])
+def test_low_variance_walk_by_hand():
+    # N = 4, w = (0.1, 0.4, 0.2, 0.3): cumulative 0.1, 0.5, 0.7, 1.0; u0 = 0.15:
+    # u = 0.15, 0.4, 0.65, 0.9 fall in the intervals of particles 1, 1, 2, 3
+    idx = low_variance_indices(np.array([0.1, 0.4, 0.2, 0.3]), FixedU0(0.15))
+    assert list(idx) == [1, 1, 2, 3]
+    idx = low_variance_indices(np.array([0.1, 0.4, 0.2, 0.3]), FixedU0(0.05))
+    assert list(idx) == [0, 1, 2, 3]                       # u = 0.05, 0.3, 0.55, 0.8
 
 
 def test_one_heavy_particle_takes_all():
@@ -56,3 +65,4 @@ def test_slot_parents_move_only_extra_children():
 def test_neff():
     assert neff(np.full(4, 0.25)) == pytest.approx(4.0)
     assert neff(np.array([1.0, 0, 0, 0])) == pytest.approx(1.0)
+    assert neff(np.array([0.5, 0.25, 0.25])) == pytest.approx(1 / 0.375)   # 1 / (0.25 + 2 * 0.0625)

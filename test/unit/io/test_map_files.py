@@ -1,4 +1,5 @@
-"""map_server files: exact pixels and YAML, round trip, atomic failure behaviour."""
+"""map_server files: exact pixels and YAML, round trip, atomic failure behaviour, versioned
+saves over a map in use (the YAML and the image it names always match) and their clean-up."""
 from __future__ import annotations
 
 import errno
@@ -9,7 +10,7 @@ import pytest
 import yaml
 
 from fastslam.io import map_files as mapfile
-from fastslam.io.map_files import MapLoadError, MapSaveError, load_map, save_map
+from fastslam.io.map_files import MapLoadError, MapSaveError, load_map, remove_stale, save_map
 
 # grid row 0 (bottom) = [-1, 0, 25], row 1 (top) = [26, 65, 100]
 OCC = np.array([[-1, 0, 25], [26, 65, 100]], dtype=np.int8)
@@ -186,3 +187,88 @@ def test_saved_pgm_opens_in_pillow_with_map_saver_pixels(tmp_path):
 def test_unknown_image_is_a_map_load_error(tmp_path):
     with pytest.raises(MapLoadError, match="cannot read image"):
         _load(tmp_path, "d.pgm", b"not an image at all")
+def test_trinary_rule_by_hand():
+    # p = (255 - v) / 255: 0 -> 1.0 (occupied), 89 -> 0.651 (occupied), 90 -> 0.647 (unknown),
+    # 205 -> 0.196 (unknown: not below free_thresh 0.196), 206 -> 0.192 (free), 254 -> 0.004
+    pixels = np.array([[0, 89, 90, 205, 206, 254]], dtype=np.uint8)
+    np.testing.assert_array_equal(mapfile.trinary(pixels, negate=False), [[100, 100, -1, -1, 0, 0]])
+    # negate: p = v / 255: 0 -> 0 (free), 89 and 90 -> 0.35 (unknown), 205 .. 254 -> 0.8 .. 1 (occupied)
+    np.testing.assert_array_equal(mapfile.trinary(pixels, negate=True), [[0, -1, -1, 100, 100, 100]])
+
+
+def test_occupancy_to_pixels_flips_rows_and_keeps_map_savers_thresholds():
+    occ = np.array([[-1, 0, 25, 26], [64, 65, 100, 50]], dtype=np.int8)
+    np.testing.assert_array_equal(mapfile.occupancy_to_pixels(occ), [[205, 0, 0, 205], [205, 254, 254, 205]])
+
+
+def test_map_paths_from_a_stem_or_either_file(tmp_path):
+    for name in ("m", "m.yaml", "m.pgm"):
+        pgm, yml = save_map(tmp_path / name, OCC, 0.05, (0.0, 0.0, 0.0))
+        assert (pgm.name, yml.name) == ("m.pgm", "m.yaml")
+
+
+def test_read_image_header_forms_and_errors(tmp_path):
+    (tmp_path / "a.pgm").write_bytes(b"P5 2\n# width above, height below\n1 255\n" + bytes([7, 9]))
+    values, white = mapfile.read_image(tmp_path / "a.pgm")
+    np.testing.assert_array_equal(values, [[7, 9]])
+    assert white == 255
+    for data in (b"P5\n3 3\n255\n" + bytes(4), b"P5\n3", b"P5\nx 3 255\n", b""):
+        (tmp_path / "b.pgm").write_bytes(data)
+        with pytest.raises(MapLoadError, match="cannot read image .*b.pgm"):
+            mapfile.read_image(tmp_path / "b.pgm")
+
+
+def test_saved_files_are_readable_by_others(tmp_path):
+    pgm, yml = save_map(tmp_path / "m", OCC, 0.05, (0.0, 0.0, 0.0))
+    assert pgm.stat().st_mode & 0o777 == 0o644 and yml.stat().st_mode & 0o777 == 0o644
+
+
+# -- versioned saves: whatever moment a save is killed at, the YAML names an image that exists
+
+SAVED = np.array([[-1, 0, 100], [0, 0, 100]], dtype=np.int8)
+
+
+def _image(yaml_path):
+    return yaml.safe_load(yaml_path.read_text())["image"]
+
+
+def test_each_versioned_save_leaves_one_yaml_and_the_one_image_it_names(tmp_path):
+    for k in range(5):
+        occ = SAVED.copy()
+        occ[0, 0] = 100 if k % 2 else -1
+        pgm, yml = save_map(tmp_path / "m", occ, 0.05, (1.0, 2.0, 0.0), versioned=True)
+        assert yml == tmp_path / "m.yaml" and pgm.name == _image(yml)
+        assert pgm.name.startswith("m.saved-") and pgm.suffix == ".pgm"
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", pgm.name])
+        np.testing.assert_array_equal(load_map(yml)[0], occ)
+
+
+def test_a_save_failing_before_the_yaml_keeps_the_previous_pair(tmp_path, monkeypatch):
+    _, yml = save_map(tmp_path / "m", SAVED, 0.05, (0.0, 0.0, 0.0), versioned=True)
+    before = (yml.read_text(), _image(yml))
+    real = mapfile._atomic_write_all
+
+    def full_disk_for_yaml(files):
+        if files[0][0].suffix == ".yaml":
+            raise MapSaveError("cannot write map file m.yaml: No space left on device")
+        real(files)
+
+    monkeypatch.setattr(mapfile, "_atomic_write_all", full_disk_for_yaml)
+    with pytest.raises(MapSaveError, match="No space"):
+        save_map(tmp_path / "m", np.zeros((2, 3), np.int8), 0.05, (0.0, 0.0, 0.0), versioned=True)
+    assert (yml.read_text(), _image(yml)) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", before[1]])
+    np.testing.assert_array_equal(load_map(yml)[0], SAVED)
+
+
+def test_what_killed_saves_left_is_removed_and_the_map_kept(tmp_path):
+    _, yml = save_map(tmp_path / "m", SAVED, 0.05, (0.0, 0.0, 0.0), versioned=True)
+    kept = _image(yml)
+    leftovers = [".m.pgm.a1b2.tmp", ".m.yaml.c3d4.tmp", "m.saved-orphan.pgm"]
+    for name in leftovers:
+        (tmp_path / name).write_bytes(b"x" * 100)
+    (tmp_path / "m.old.pgm").write_bytes(b"a user's own file")     # not ours: kept
+    removed = remove_stale(tmp_path / "m")
+    assert sorted(p.name for p in removed) == sorted(leftovers)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", kept, "m.old.pgm"])
+    np.testing.assert_array_equal(load_map(yml)[0], SAVED)

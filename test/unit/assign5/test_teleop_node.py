@@ -10,8 +10,6 @@ import pytest
 
 from assign5.teleop_node import TeleopState, press, ramp, status_line, tick
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 def keys(seq: str, state: TeleopState | None = None) -> TeleopState:
     state = state or TeleopState()
@@ -55,9 +53,9 @@ def test_ramp_moves_half_a_step_per_loop() -> None:
 
 
 @pytest.mark.ros  # the executable imports rospy
-def test_refuses_without_a_terminal() -> None:
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    out = subprocess.run([sys.executable, str(ROOT / "src" / "teleop_key.py")], stdin=subprocess.DEVNULL,
+def test_refuses_without_a_terminal(repo_root: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(repo_root / "src"))
+    out = subprocess.run([sys.executable, str(repo_root / "src" / "teleop_key.py")], stdin=subprocess.DEVNULL,
                          capture_output=True, text=True, timeout=30, env=env)
     assert out.returncode != 0
     assert "not a terminal" in out.stderr

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Dict, Tuple
+from typing import TYPE_CHECKING, Any, Mapping, Tuple
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -24,7 +24,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import ArrayLike, NDArray
 
 Colour = Tuple[int, int, int]
-Paths = Dict[str, Tuple["ArrayLike", Colour]]   # name -> ((T, 2) xy [m], (r, g, b)), drawn in order
+Paths = Mapping[str, Tuple["ArrayLike", Colour]]   # name -> ((T, 2) xy [m], (r, g, b)), drawn in order
 
 UNKNOWN_RGB = (205, 205, 205)
 FREE_RGB = (255, 255, 255)

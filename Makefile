@@ -18,7 +18,7 @@ help:
 setup:
 	@bash scripts/setup.sh
 
-$(SETUP_STAMP): CMakeLists.txt package.xml setup.py scripts/setup.sh scripts/debian-packages.txt scripts/requirements-dev.txt
+$(SETUP_STAMP): CMakeLists.txt package.xml setup.py scripts/setup.sh scripts/debian-packages.txt scripts/requirements-dev.txt scripts/requirements-py38.txt
 	@bash scripts/setup.sh
 
 test: $(SETUP_STAMP)

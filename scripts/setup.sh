@@ -41,6 +41,24 @@ if ! cmp -s scripts/requirements-dev.txt .venv/.requirements 2>/dev/null; then
   cp scripts/requirements-dev.txt .venv/.requirements
 fi
 
+# ROS Noetic's platform for make test: a Python 3.8 venv with Ubuntu 20.04's library
+# versions (scripts/requirements-py38.txt); git and catkin ignore .venv38.
+py38=""
+for c in "${PYTHON38:-}" "${PYENV_ROOT:-$HOME/.pyenv}"/versions/3.8*/bin/python3.8 "$(command -v python3.8)"; do
+  [ -n "$c" ] && "$c" -c 'import sys; assert sys.version_info[:2] == (3, 8)' 2>/dev/null && { py38=$c; break; }
+done
+if [ -z "$py38" ]; then
+  echo "setup: no Python 3.8 (set PYTHON38=/path/to/python3.8): make test's Python 3.8 run will fail" >&2
+elif ! cmp -s scripts/requirements-py38.txt .venv38/.requirements 2>/dev/null; then
+  echo "setup: creating .venv38 from $py38 (Ubuntu 20.04's numpy, Pillow, tqdm, matplotlib, PyYAML)"
+  rm -rf .venv38
+  "$py38" -m venv .venv38 || die "$py38 -m venv .venv38 failed"
+  touch .venv38/CATKIN_IGNORE .venv38/rospack_nosubdirs
+  .venv38/bin/python -m pip install -q --disable-pip-version-check -r scripts/requirements-py38.txt \
+    || die "pip install of scripts/requirements-py38.txt into .venv38 failed"
+  cp scripts/requirements-py38.txt .venv38/.requirements
+fi
+
 # The workspace holds the package as links to its top-level entries: linking the whole
 # repository would put .ws inside itself and send rospack and rosrun round a loop.
 [ -L .ws/src/assign5 ] && rm .ws/src/assign5

@@ -19,7 +19,7 @@ from nav_msgs.srv import GetMap
 from std_msgs.msg import Bool, Float64
 
 from fastslam.eval.maps import run_quality
-from fastslam.eval.render import render_map, write_png
+from fastslam.eval.render import ESTIMATE_RGB, TRUTH_RGB, map_picture, write_png
 from fastslam.geometry import relative, yaw_from_quaternion
 from fastslam.io.map_files import save_map
 from fastslam.sim.world_loader import load_world
@@ -112,9 +112,9 @@ def write_outputs(out: FilePath, metrics: dict, occ: np.ndarray, grid: Occupancy
     out.mkdir(parents=True, exist_ok=True)
     origin = (grid.info.origin.position.x, grid.info.origin.position.y, 0.0)
     save_map(str(out / "map"), occ, grid.info.resolution, origin)
-    rgb = render_map(occ, grid.info.resolution, origin,
-                     {"truth": (truth[:, 1:3], (0, 160, 0)), "estimate": (traj[:, 1:3], (220, 0, 0))}, scale=3)
-    write_png(str(out / "map.png"), rgb)
+    picture = map_picture(occ, grid.info.resolution, origin,
+                          {"truth": (truth[:, 1:3], TRUTH_RGB), "estimate": (traj[:, 1:3], ESTIMATE_RGB)})
+    write_png(out / "map.png", picture)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
 
 

@@ -13,14 +13,17 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import choice as _choice
 from fastslam.fields import num as _num
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 __all__ = ["ConfigError", "SlamConfig", "parse_override"]
 
@@ -155,7 +158,12 @@ class SlamConfig:
     def from_yaml(cls, path: builtins.str | Path, overrides: Mapping[builtins.str, Any] | None = None) -> SlamConfig:
         import yaml  # only file loading needs it
 
-        data = yaml.safe_load(Path(path).read_text()) or {}
+        try:
+            data = yaml.safe_load(Path(path).read_text()) or {}
+        except yaml.YAMLError as err:
+            where = getattr(err, "problem_mark", None)
+            line = f" line {where.line + 1}" if where is not None else ""
+            raise ConfigError(f"{path}:{line}: not valid YAML ({getattr(err, 'problem', None) or err})") from None
         if not isinstance(data, dict):
             raise ConfigError(f"{path}: expected a mapping of parameters, got {type(data).__name__}")
         data.update(overrides or {})

@@ -3,9 +3,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 @dataclass(frozen=True)
@@ -46,8 +49,15 @@ class LaserMount:
 
 
 def quaternion_matrix(q: ArrayLike) -> NDArray[np.float64]:
-    """(x, y, z, w) quaternion (need not be unit) -> 3x3 rotation matrix."""
-    x, y, z, w = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
+    """(x, y, z, w) quaternion (need not be unit) -> 3x3 rotation matrix.
+
+    Raises:
+        ValueError: a zero (or not finite) quaternion, which is no rotation at all.
+    """
+    norm = float(np.linalg.norm(q))
+    if not (np.isfinite(norm) and norm > 1e-12):
+        raise ValueError(f"quaternion {tuple(np.asarray(q, dtype=np.float64).tolist())} is not a rotation")
+    x, y, z, w = np.asarray(q, dtype=np.float64) / norm
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],

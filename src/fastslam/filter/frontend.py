@@ -14,13 +14,16 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.filter.odom_buffer import OdomBuffer
-from fastslam.filter.scan import Scan
+from fastslam.filter.scan import Scan, fov_problem
 from fastslam.filter.slam import FastSlam, StepInfo
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 JUMP_WINDOW = 1.0  # [s] a kidnap is far from every pose of this window (a second source lags a little)
 
@@ -31,8 +34,8 @@ class Dropped(ValueError):
 
 def drop_key(why: str) -> str:
     """The kind of drop a reason names, to count by: without the detail after a colon
-    and with numbers replaced, so "latest odometry is +0.61 s" and "+0.72 s" count as one."""
-    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", why.split(":")[0]).strip()
+    or in parentheses, and with numbers replaced, so "latest odometry is +0.61 s" and "+0.72 s" count as one."""
+    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", re.split(r"[:(]", why)[0]).strip()
 
 
 @dataclass
@@ -106,6 +109,9 @@ class Frontend:
         t = scan.stamp
         if not t > 0:
             raise Dropped("scan stamped zero")
+        problem = fov_problem(scan, self.slam.cfg)
+        if problem:
+            raise Dropped(problem)
         if self.last_stamp is not None and t < self.last_stamp:
             self.events.append(f"resetting the filter: time went backwards ({self.last_stamp:.2f} -> "
                                f"{t:.2f} s): bag restarted or looped?")

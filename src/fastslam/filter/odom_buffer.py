@@ -3,20 +3,29 @@ from __future__ import annotations
 
 import bisect
 from collections import deque
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.geometry import wrap_angle
 
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
+
+# Samples kept at most, whatever their stamps: a driver whose stamps freeze would
+# otherwise grow the buffer without end (10 s of odometry at 1 kHz fit).
+MAX_SAMPLES = 10_000
+
 
 class OdomBuffer:
-    """Time-ordered (t, x, y, theta) samples covering the last `span` seconds."""
+    """Time-ordered (t, x, y, theta) samples covering the last `span` seconds, at most
+    max_samples of them."""
 
-    def __init__(self, span: float = 10.0) -> None:
+    def __init__(self, span: float = 10.0, max_samples: int = MAX_SAMPLES) -> None:
         self.span = span
-        self._t: deque[float] = deque()
-        self._p: deque[NDArray[np.float64]] = deque()
+        self._t: deque[float] = deque(maxlen=max_samples)
+        self._p: deque[NDArray[np.float64]] = deque(maxlen=max_samples)
 
     def __len__(self) -> int:
         return len(self._t)
@@ -44,6 +53,9 @@ class OdomBuffer:
         longer covers its time (then it is not kept)."""
         if not self._t or t < self._t[0]:
             return False
+        if len(self._t) == self._t.maxlen:   # full: the oldest sample makes room
+            self._t.popleft()
+            self._p.popleft()
         i = bisect.bisect_right(self._t, t)
         self._t.insert(i, float(t))
         self._p.insert(i, np.asarray(pose, dtype=np.float64))
@@ -61,9 +73,12 @@ class OdomBuffer:
 
     def since(self, t: float) -> NDArray[np.float64]:
         """(K, 3) poses stamped t or later, at least the newest (K >= 1 unless empty)."""
-        ts = np.fromiter(self._t, float, len(self._t))
-        i = min(int(np.searchsorted(ts, t, side="left")), len(ts) - 1)
-        return np.array([self._p[j] for j in range(i, len(ts))]).reshape(-1, 3)
+        out: list[NDArray[np.float64]] = []
+        for j in range(len(self._t) - 1, -1, -1):   # from the newest: only the window is visited
+            if self._t[j] < t and out:
+                break
+            out.append(self._p[j])
+        return np.array(out).reshape(-1, 3)
 
     def at(self, t: float, max_extrapolation: float) -> NDArray[np.float64] | None:
         """(3,) pose at time t, linear in x, y and the wrapped heading.

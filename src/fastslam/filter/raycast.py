@@ -10,14 +10,17 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.filter.grid import GridMaps, LogOddsSteps
 from fastslam.filter.scan import Beams
 from fastslam.filter.scratch import scratch
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
@@ -347,6 +350,8 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
     """
     ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
+    if m == 0:  # no beam in the field of view: nothing to trace
+        return np.empty((n_p, 0)) if expected else None
     k_guess = int(max_range / grid.resolution) + 2
     per_chunk = max(1, CHUNK_ELEMENTS // (m * k_guess))
     out = np.empty((n_p, m)) if expected else None

@@ -3,12 +3,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.config import SlamConfig
 from fastslam.geometry import wrap_angle
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,21 @@ def laser_problem(count: int, angle_min: float, angle_increment: float, range_mi
     return None
 
 
+def in_fov(angles: NDArray[np.float64], cfg: SlamConfig) -> NDArray[np.bool_]:
+    """(M,) which beams (base-frame directions) lie in the field of view fov_min..fov_max."""
+    deg = np.degrees(wrap_angle(angles))
+    return (deg >= cfg.fov_min) & (deg <= cfg.fov_max)
+
+
+def fov_problem(scan: Scan, cfg: SlamConfig) -> str | None:
+    """Why no beam of the scan can be used (none in the field of view), or None."""
+    if in_fov(scan.angles, cfg).any():
+        return None
+    first, last = np.degrees(wrap_angle(scan.angles[[0, -1]]))
+    return (f"no beam in the field of view fov_min..fov_max = {cfg.fov_min:g}..{cfg.fov_max:g} deg "
+            f"(the scan sweeps from {first:.0f} to {last:.0f} deg in the base frame)")
+
+
 def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
     """Field of view, every k-th beam, and the class of each reading.
 
@@ -90,9 +108,8 @@ def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
     are no-returns that clear free space up to no_return_range; returns beyond the
     filter's max_range clear up to max_range and mark nothing.
     """
-    deg = np.degrees(wrap_angle(scan.angles))
-    keep = (deg >= cfg.fov_min) & (deg <= cfg.fov_max)
-    keep &= (np.arange(len(deg)) % cfg.beam_step) == 0
+    keep = in_fov(scan.angles, cfg)
+    keep &= (np.arange(len(keep)) % cfg.beam_step) == 0
     z = scan.ranges[keep]
     with np.errstate(invalid="ignore"):
         no_return = ~np.isfinite(z) | (z >= scan.range_max)

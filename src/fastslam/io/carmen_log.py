@@ -22,14 +22,18 @@ from __future__ import annotations
 import gzip
 import math
 import os
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO, TYPE_CHECKING, Iterator
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.geometry import relative
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 FLASER_MAX_RANGE = 81.83  # [m] SICK LMS "no return" reading in CARMEN logs
 
@@ -116,6 +120,24 @@ def flaser_geometry(n: int) -> tuple[float, float]:
     return -math.pi / 2, math.pi / max(1, n - n % 2)
 
 
+MAX_STAMP = 2.0**32  # [s] ROS 1 time holds seconds in 32 bits
+
+
+def _stamp(value: str) -> float:
+    """A timestamp field [s]: finite, not negative, one ROS 1 time can hold."""
+    t = float(value)
+    if not 0.0 <= t < MAX_STAMP:
+        raise ValueError(f"timestamp {value} is not in [0, 2^32) s")
+    return t
+
+
+def _pose(values: list[str]) -> NDArray[np.float64]:
+    p = np.asarray(values, dtype=np.float64)
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"pose {' '.join(values)} is not finite")
+    return p
+
+
 def _no_return(values: list[str], max_range: float) -> NDArray[np.float32]:
     r = np.asarray(values, dtype=np.float64)
     # compare in float64 before the cast: 81.83 in float32 is not 81.83
@@ -130,11 +152,10 @@ def parse_flaser(tok: list[str], *, max_range: float = FLASER_MAX_RANGE) -> Lase
     rest = tok[2 + n:]
     angle_min, inc = flaser_geometry(n)
     return LaserRecord(
-        t=float(rest[8]), ipc_t=float(rest[6]),
+        t=_stamp(rest[8]), ipc_t=float(rest[6]),
         ranges=_no_return(tok[2:2 + n], max_range),
         angle_min=angle_min, angle_increment=inc, max_range=max_range,
-        laser_pose=np.asarray(rest[0:3], dtype=np.float64),
-        robot_pose=np.asarray(rest[3:6], dtype=np.float64), kind="FLASER")
+        laser_pose=_pose(rest[0:3]), robot_pose=_pose(rest[3:6]), kind="FLASER")
 
 
 def parse_robotlaser1(tok: list[str], *, max_range: float | None = None) -> LaserRecord:
@@ -147,17 +168,16 @@ def parse_robotlaser1(tok: list[str], *, max_range: float | None = None) -> Lase
         raise ValueError(f"ROBOTLASER1 with {n} readings and {k} remissions is too short")
     limit = logged_max if max_range is None else max_range
     return LaserRecord(
-        t=float(rest[13]), ipc_t=float(rest[11]),
+        t=_stamp(rest[13]), ipc_t=float(rest[11]),
         ranges=_no_return(tok[9:9 + n], limit),
         angle_min=start, angle_increment=res, max_range=limit,
-        laser_pose=np.asarray(rest[0:3], dtype=np.float64),
-        robot_pose=np.asarray(rest[3:6], dtype=np.float64), kind="ROBOTLASER1",
+        laser_pose=_pose(rest[0:3]), robot_pose=_pose(rest[3:6]), kind="ROBOTLASER1",
         remissions=np.asarray(tok[10 + n:10 + n + k], dtype=np.float32))
 
 
 def parse_odom(tok: list[str]) -> OdomLine:
     """Tokens of one ODOM line -> OdomLine."""
-    return OdomLine(t=float(tok[9]), ipc_t=float(tok[7]), pose=np.asarray(tok[1:4], dtype=np.float64),
+    return OdomLine(t=_stamp(tok[9]), ipc_t=float(tok[7]), pose=_pose(tok[1:4]),
                     tv=float(tok[4]), rv=float(tok[5]))
 
 
@@ -168,21 +188,25 @@ def iter_log(lines: Iterator[str] | IO[str], *, max_range: float | None = None
     Raises:
         CarmenError: a known message type with missing or non-numeric fields.
     """
-    for number, line in enumerate(lines, start=1):
-        tok = line.split()
-        if not tok:
-            continue
-        try:
-            if tok[0] == "FLASER":
-                yield parse_flaser(tok, max_range=FLASER_MAX_RANGE if max_range is None else max_range)
-            elif tok[0] == "ROBOTLASER1":
-                yield parse_robotlaser1(tok, max_range=max_range)
-            elif tok[0] == "ODOM":
-                yield parse_odom(tok)
-            elif tok[0] == "PARAM" and len(tok) >= 3:
-                yield ("PARAM", f"{tok[1]} {tok[2]}")
-        except (ValueError, IndexError) as err:
-            raise CarmenError(f"line {number}: bad {tok[0]} message: {err}") from None
+    number = 0
+    try:
+        for number, line in enumerate(lines, start=1):
+            tok = line.split()
+            if not tok:
+                continue
+            try:
+                if tok[0] == "FLASER":
+                    yield parse_flaser(tok, max_range=FLASER_MAX_RANGE if max_range is None else max_range)
+                elif tok[0] == "ROBOTLASER1":
+                    yield parse_robotlaser1(tok, max_range=max_range)
+                elif tok[0] == "ODOM":
+                    yield parse_odom(tok)
+                elif tok[0] == "PARAM" and len(tok) >= 3:
+                    yield ("PARAM", f"{tok[1]} {tok[2]}")
+            except (ValueError, IndexError) as err:
+                raise CarmenError(f"line {number}: bad {tok[0]} message: {err}") from None
+    except (EOFError, OSError, zlib.error) as err:  # reading the next line failed
+        raise CarmenError(f"line {number + 1}: the file ends early or is corrupt (truncated gzip?): {err}") from None
 
 
 def read_log(path: str | os.PathLike[str], *, max_range: float | None = None,

@@ -3,13 +3,17 @@ or TUM's ``t x y z qx qy qz qw`` (what `evo` reads), z = 0 and a rotation about 
 Relations files (Kuemmerle et al. 2009): ``t1 t2 x y z roll pitch yaw`` per line."""
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import yaw_from_quaternion
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 class TrajectoryError(ValueError):
@@ -44,6 +48,16 @@ def write_trajectory(path: str | os.PathLike[str], times: ArrayLike, poses: Arra
     return path
 
 
+def _text(path: str | os.PathLike[str], what: str) -> str:
+    """The file's text; TrajectoryError for a missing or binary file."""
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except OSError as err:
+        raise TrajectoryError(f"cannot read {what} {path}: {err.strerror}") from err
+    except UnicodeDecodeError:
+        raise TrajectoryError(f"{path} is not a text file of {what} lines") from None
+
+
 def read_trajectory(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """-> ((T,) times sorted ascending, (T, 3) poses). A line of 8 numbers is TUM's
     ``t x y z qx qy qz qw`` (the heading from the quaternion); otherwise columns after
@@ -53,10 +67,7 @@ def read_trajectory(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], 
         TrajectoryError: missing file, or a line with fewer than 4 numbers.
     """
     rows: list[list[float]] = []
-    try:
-        text = Path(path).read_text()
-    except OSError as err:
-        raise TrajectoryError(f"cannot read trajectory {path}: {err.strerror}") from err
+    text = _text(path, "trajectory")
     for number, line in enumerate(text.splitlines(), start=1):
         body = line.split("#", 1)[0].replace(",", " ").split()
         if not body:
@@ -64,7 +75,9 @@ def read_trajectory(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], 
         try:
             values = [float(v) for v in body[:8]]
         except ValueError:
-            raise TrajectoryError(f"{path}:{number}: not numbers: {line.strip()!r}") from None
+            raise TrajectoryError(f"{path}:{number}: not numbers: {line.strip()[:80]!r}") from None
+        if not all(math.isfinite(v) for v in values):
+            raise TrajectoryError(f"{path}:{number}: NaN or infinite values: {line.strip()[:80]!r}")
         if len(body) < 4:
             raise TrajectoryError(f"{path}:{number}: expected 't x y theta', got {line.strip()!r}")
         if len(body) == 8:
@@ -82,10 +95,7 @@ def read_relations(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     Raises:
         TrajectoryError: missing file, a line that is not 8 numbers, or no relation.
     """
-    try:
-        text = Path(path).read_text()
-    except (OSError, UnicodeDecodeError) as err:
-        raise TrajectoryError(f"cannot read relations {path}: {getattr(err, 'strerror', None) or err}") from err
+    text = _text(path, "relations")
     rows: list[list[float]] = []
     for number, line in enumerate(text.splitlines(), start=1):
         body = line.split("#", 1)[0].split()

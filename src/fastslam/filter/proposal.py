@@ -7,16 +7,18 @@ motion model, so the filter and the matcher bench (bench/matcher.py) do the same
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Tuple
+from typing import TYPE_CHECKING, Tuple
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.config import SlamConfig
 from fastslam.geometry import cos_sin, wrap_angle
 from fastslam.match import Match, MatchParams
 
-Prior = Tuple[NDArray[np.float64], NDArray[np.float64]]  # typing.Tuple: evaluated at run time on 3.8
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
+    Prior = Tuple[NDArray[np.float64], NDArray[np.float64]]
 
 
 def motion_spread(cfg: SlamConfig, motion_std: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -14,14 +14,16 @@ command a user runs, in its own process, one at a time:
   ATE of `trajectory_scans.txt` against the log's poses.
 
 Per log: the error of each seed, their median and the worst, the worst single relation
-error (relations), wall seconds of the whole command and its peak memory (the largest
-over the seeds); then one summary line against the targets of issue 16.
+error (relations), wall and CPU seconds of the whole command and its peak memory (the
+largest over the seeds; CPU seconds stand when others share the machine); then one
+summary line against the targets of issue 16.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -48,14 +50,17 @@ def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) 
     """The offline tool on bag in its own process; its stats plus the command's wall time."""
     cmd = [sys.executable, "-m", "fastslam.offline", str(bag), "--out", str(out), "--config", str(config),
            "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
     wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip().splitlines()[-1:]}")
     stats = json.loads((out / "stats.json").read_text())
     warnings = [ln for ln in done.stderr.splitlines() if ln.startswith("warning")]
-    return {"wall_s": wall, "peak_mb": stats["peak_memory_mb"], "updates": stats["updates"],
+    return {"wall_s": wall, "cpu_s": cpu, "peak_mb": stats["peak_memory_mb"], "updates": stats["updates"],
             "scans": stats["scans"], "warnings": len(warnings)}
 
 
@@ -111,6 +116,7 @@ def print_log(rows: list[dict], relations: bool) -> None:
     live = np.median([r["live"] for r in rows])
     print(f"{rows[0]['log']:<13} {'rel' if relations else 'ATE':<4} {seeds:<21} {np.median(err):7.3f} "
           f"{max(err):7.3f} {extra} {live:7.3f} {max(r['wall_s'] for r in rows):7.1f} "
+          f"{max(r['cpu_s'] for r in rows):6.1f} "
           f"{max(r['peak_mb'] for r in rows):7.0f} {rows[0]['updates']:>5}/{rows[0]['scans']:<5}", flush=True)
 
 
@@ -156,10 +162,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"accuracy: {shown}"
           f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {data_path('aces.bag').parent}")
     print("rel: relations mean [m] of the pose at every scan (max: worst single relation); ATE [m] after "
-          "alignment; live: the same for map->odom's poses (median); wall s and peak MB: whole command, "
-          "largest over the seeds")
+          "alignment; live: the same for map->odom's poses (median); wall s, cpu s (user + system) and peak "
+          "MB: whole command, largest over the seeds")
     print(f"{'log':<13} {'':<4} {'seeds':<21} {'median':>7} {'worst':>7} {'max rel':>8} {'live':>7} "
-          f"{'wall s':>7} {'peak MB':>7} {'updates/scans'}")
+          f"{'wall s':>7} {'cpu s':>6} {'peak MB':>7} {'updates/scans'}")
     rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="bench-accuracy-") as tmp:
         for name in args.logs:

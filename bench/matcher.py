@@ -22,6 +22,7 @@ import numpy as np
 from bench.common import data_path
 from fastslam.config import SlamConfig, parse_override
 from fastslam.filter.motion import odometry_std
+from fastslam.filter.proposal import gate_match, match_request
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
 from fastslam.geometry import compose, relative
@@ -69,8 +70,9 @@ def match_errors(cfg: SlamConfig, scans: Iterator[tuple[np.ndarray, Scan]], seed
             std = np.maximum(odometry_std(last, pose, alphas), 1e-9)
             predicted = compose(pose, rng.normal(0.0, 1.0, 3) * std)      # where odometry says
             sample = compose(predicted, rng.normal(0.0, 1.0, 3) * std)    # the particle's sample
-            prior = (predicted[None], std) if cfg.match_prior == "motion" else None  # as FastSlam does
-            match = match_poses(mapper.grid, sample[None], select_beams(scan, cfg), params, prior=prior)
+            start, step_params, prior = match_request(cfg, params, sample[None], predicted[None], std)
+            match = match_poses(mapper.grid, start, select_beams(scan, cfg), step_params, prior=prior)
+            match = gate_match(cfg, match, predicted[None], std)                  # as FastSlam does
             if match.trusted[0]:
                 out.append(relative(pose, match.poses[0]))
         mapper.step(pose, scan)

@@ -35,7 +35,7 @@ class SlamNode:
         self.slam = FastSlam(slam_cfg)
         self.lock = threading.RLock()  # the filter, the odometry buffer, map->odom
         self.front = Frontend(self.slam, odom_timeout=cfg.odom_timeout, odom_buffer=cfg.odom_buffer,
-                              max_odom_speed=cfg.max_odom_speed)
+                              max_odom_speed=cfg.max_odom_speed, max_odom_jump=cfg.max_odom_jump)
         self.map_to_odom = np.zeros(3)
         self.mounts: dict[str, tuple[tuple[float, float, float], bool]] = {}
         self.last_map_stamp = -np.inf

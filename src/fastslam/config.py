@@ -76,6 +76,8 @@ class SlamConfig:
     likelihood_sigma: float = _num(0.05, 1e-3, 10.0, "likelihood model: endpoint std-dev [m]")
     likelihood_max_dist: float = _num(0.3, 1e-3, 10.0, "likelihood model: distance cap per beam [m]")
     likelihood_gain: float = _num(1.0, 1e-6, 1.0, "likelihood model: exponent on the scan likelihood (smoothing)")
+    likelihood_free: float = _num(0.0, 0.0, 100.0, "likelihood model: extra cost (as a beam's log-likelihood) of "
+                                  "an end point in known free space with no wall within likelihood_max_dist")
     resample_threshold: float = _num(1.0, 0.0, 1.0, "resample when Neff < threshold*N; 1.0 = every update")
     # Proposal (improved mode)
     proposal: builtins.str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
@@ -97,6 +99,19 @@ class SlamConfig:
     match_refine: builtins.str = _choice("hill", ("hill", "icp"),
                                 "last stage of the match: hill: climb the interpolated evidence; "
                                 "icp: Gauss-Newton on end point to nearest occupied cell, with the prior")
+    match_max_free: float = _num(1.0, 0.0, 1.0, "the matcher counts end points in known free space against a "
+                                 "candidate and distrusts a match with a larger share of them; 1 = neither")
+    match_floor_xy: float = _num(0.025, 0.0, 10.0, "match_prior: motion: least std-dev along and across of the "
+                                 "matcher's odometry prior, window and gate (odometry jitter) [m]")
+    match_floor_theta: float = _num(0.01, 0.0, math.pi, "... and of the heading [rad]")
+    match_good_score: float = _num(1.0, 0.0, 1.0, "a match with at least this share of its end points on "
+                                   "occupied cells is not held to match_gate")
+    match_window: float = _num(0.0, 0.0, 100.0, "match_prior: motion: search half-widths of this many std-devs of "
+                               "the motion model for the step, around its noise-free prediction, at most "
+                               "match_xy_range / match_theta_range; 0 = those fixed half-widths around each "
+                               "particle's motion sample")
+    match_gate: float = _num(0.0, 0.0, 100.0, "distrust a match farther from the noise-free motion prediction than "
+                             "this many std-devs of the motion model (match_prior: motion); 0 = off")
     # Update gating (improved mode); zeros process every scan as the assignment does
     linear_update: float = _num(0.0, 0.0, 100.0, "process a scan after this much travel [m]")
     angular_update: float = _num(0.0, 0.0, 2 * math.pi, "... or this much rotation [rad]")
@@ -108,6 +123,9 @@ class SlamConfig:
             raise ConfigError(f"fov_min={self.fov_min} must be less than fov_max={self.fov_max}")
         if self.l_min >= self.l_max:
             raise ConfigError(f"l_min={self.l_min} must be less than l_max={self.l_max}")
+        for name in ("match_gate", "match_window"):
+            if getattr(self, name) > 0 and self.match_prior != "motion":
+                raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
         if self.match_spread == "match" and self.match_refine != "icp":
             raise ConfigError("match_spread=match needs match_refine=icp (the hill climb has no covariance)")
         for name in ("map_width", "map_height"):

@@ -73,6 +73,7 @@ class OfflineResult:
     update_ms: list[float] = field(default_factory=list)
     dropped: dict[str, int] = field(default_factory=dict)
     events: list[str] = field(default_factory=list)
+    rules: dict[str, int] = field(default_factory=dict)  # how often each odometry rule fired
     # one row per scan the filter saw: t, odometry x y theta, live pose x y theta,
     # index of the last processed update, filter life (resets before it), processed (0/1)
     scan_rows: list[list[float]] = field(default_factory=list)
@@ -107,7 +108,7 @@ class OfflineResult:
         return {"scans": self.scans, "updates": self.updates, "wall_seconds": round(self.wall_seconds, 3),
                 "ms_per_update_median": float(np.median(ms)), "ms_per_update_p95": float(np.percentile(ms, 95)),
                 "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                "dropped": self.dropped, "events": self.events,
+                "dropped": self.dropped, "odometry_rules": self.rules, "events": self.events,
                 **({"accuracy": self.accuracy} if self.accuracy is not None else {})}
 
 
@@ -155,6 +156,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
                                     "real time", refresh=False)
     bar.close()
     result.wall_seconds = time.perf_counter() - start
+    result.rules = dict(front.counts)
     return result
 
 

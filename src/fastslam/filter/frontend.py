@@ -1,9 +1,14 @@
 """The rules between raw sensor streams and the filter, shared by the node and the
 offline runner so that a live replay and an offline run treat every message alike.
 
-Odometry is buffered and interpolated at each scan's stamp; a step between two
-odometry messages faster than max_odom_speed is a kidnap (not integrated); time going backwards resets the filter;
-unusable scans are dropped with a reason.
+Odometry is buffered and interpolated at each scan's stamp. A kidnap is judged by
+distance, whatever the time: a pose farther than max_odom_jump from every pose of the
+last JUMP_WINDOW seconds (not integrated). Odometry out of step (faster than
+max_odom_speed since the previous message, as two sources interleaved on one topic
+give, or a log's made-up stamps) is kept: two such messages with no scan between them
+become one, their mean; a message older than the newest is put in its place. Time
+going backwards resets the filter; unusable scans are dropped with a reason. Each rule
+is counted (`counts`) and warned about at its 1st, 10th, 100th... firing.
 """
 from __future__ import annotations
 
@@ -19,6 +24,8 @@ from fastslam.filter.slam import FastSlam, StepInfo
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
+
+JUMP_WINDOW = 1.0  # [s] a kidnap is far from every pose of this window (a second source lags a little)
 
 
 class Dropped(ValueError):
@@ -36,8 +43,10 @@ class Frontend:
     slam: FastSlam
     odom_timeout: float = 0.5    # a scan this much newer than the newest odometry is dropped [s]
     odom_buffer: float = 10.0    # [s] of odometry kept
-    max_odom_speed: float = 5.0  # [m/s] a step between two odometry messages faster than this is a kidnap
+    max_odom_speed: float = 5.0  # [m/s] a step between two odometry messages faster than this is out of step
+    max_odom_jump: float = 5.0   # [m] farther from the recent odometry is a kidnap (the logs step <= 3.5 m)
     events: list[str] = field(default_factory=list)  # warnings for the caller to log, oldest first
+    counts: dict[str, int] = field(default_factory=dict)  # how often each rule fired
 
     def __post_init__(self) -> None:
         self.odom = OdomBuffer(self.odom_buffer)
@@ -46,6 +55,7 @@ class Frontend:
         self.scan_odom: NDArray[np.float64] | None = None  # odometry pose of the last scan the filter saw
         self.resets = 0
         self._rebase = False
+        self._scan_since_odom = True  # a scan used the odometry since the newest message
 
     def add_odom(self, t: float, pose: NDArray[np.float64]) -> None:
         """Buffers an odometry pose (x, y, theta) stamped t; raises Dropped if unusable."""
@@ -53,17 +63,46 @@ class Frontend:
         if not (np.all(np.isfinite(pose)) and np.isfinite(t)):
             raise Dropped("odometry with NaN or inf")
         latest = self.odom.latest
-        if latest is not None and t < latest[0]:
-            return  # older than what we have; the scan side notices restarts
-        if latest is not None:
-            jump = float(np.hypot(*(pose[:2] - latest[1][:2])))
-            # Sparse logs step a metre between messages; a teleport does it in no time.
-            if jump > self.max_odom_speed * max(t - latest[0], 1e-3):
-                self.events.append(f"odometry jumped {jump:.2f} m in {t - latest[0]:.3f} s (> max_odom_speed "
-                                   f"{self.max_odom_speed} m/s): treating it as a kidnap, the jump is not integrated")
-                self.odom.clear()
-                self._rebase = True
+        if latest is None:
+            self._accept(t, pose)
+            return
+        if t < latest[0]:
+            # older than the newest: in its place if the buffer still covers it
+            if self.odom.insert(t, pose):
+                self._fire("odometry out of order", f"odometry stamped {latest[0] - t:.3f} s before the newest "
+                           "message: put in its place")
+            return
+        recent = self.odom.since(t - JUMP_WINDOW)
+        jump = float(np.min(np.hypot(recent[:, 0] - pose[0], recent[:, 1] - pose[1])))
+        if jump > self.max_odom_jump:
+            self._fire("odometry kidnap", f"odometry jumped {jump:.2f} m (> max_odom_jump {self.max_odom_jump} m): "
+                       "treating it as a kidnap, the jump is not integrated")
+            self.odom.clear()
+            self._rebase = True
+            self._accept(t, pose)
+            return
+        step = float(np.hypot(*(pose[:2] - latest[1][:2])))
+        if step > self.max_odom_speed * max(t - latest[0], 1e-3):
+            self._fire("odometry out of step", f"odometry stepped {step:.3f} m in {t - latest[0]:.3f} s "
+                       f"(> max_odom_speed {self.max_odom_speed} m/s): two sources on one topic, or wrong stamps? "
+                       "Kept; merged with the previous message when no scan lies between them")
+            if not self._scan_since_odom:
+                self.odom.merge_latest(t, pose)
+                return
+        self._accept(t, pose)
+
+    def _accept(self, t: float, pose: NDArray[np.float64]) -> None:
         self.odom.add(t, pose)
+        self._scan_since_odom = False
+
+    def _fire(self, rule: str, detail: str) -> None:
+        """Counts a rule; warns at its 1st, 10th, 100th... firing, so thousands are an alarm, not a flood."""
+        n = self.counts.get(rule, 0) + 1
+        self.counts[rule] = n
+        if n == 1:
+            self.events.append(detail)
+        elif n == 10 ** int(round(np.log10(n))):
+            self.events.append(f"{rule}: {n} times so far (last: {detail})")
 
     def add_scan(self, scan: Scan) -> StepInfo:
         """Runs one filter step with the odometry at the scan's stamp; raises Dropped."""
@@ -90,6 +129,7 @@ class Frontend:
         info = self.slam.step(odom, scan)
         self.last_stamp = t
         self.scan_odom = odom
+        self._scan_since_odom = True
         if info.processed:
             self.last_odom = odom
         return info
@@ -101,4 +141,5 @@ class Frontend:
         self.last_odom = None
         self.scan_odom = None
         self._rebase = False
+        self._scan_since_odom = True
         self.resets += 1

@@ -1,6 +1,7 @@
 """Recent odometry poses, interpolated at a scan's stamp."""
 from __future__ import annotations
 
+import bisect
 from collections import deque
 from typing import TYPE_CHECKING
 
@@ -46,6 +47,38 @@ class OdomBuffer:
         while self._t[-1] - self._t[0] > self.span:
             self._t.popleft()
             self._p.popleft()
+
+    def insert(self, t: float, pose: NDArray[np.float64]) -> bool:
+        """Puts a sample older than the newest in its place; False if the buffer no
+        longer covers its time (then it is not kept)."""
+        if not self._t or t < self._t[0]:
+            return False
+        if len(self._t) == self._t.maxlen:   # full: the oldest sample makes room
+            self._t.popleft()
+            self._p.popleft()
+        i = bisect.bisect_right(self._t, t)
+        self._t.insert(i, float(t))
+        self._p.insert(i, np.asarray(pose, dtype=np.float64))
+        return True
+
+    def merge_latest(self, t: float, pose: NDArray[np.float64]) -> None:
+        """Replaces the newest sample by its mean with (t, pose): two readings of one
+        instant from sources out of step become one (heading the short way round)."""
+        t0, p0 = self._t[-1], self._p[-1]
+        p = np.asarray(pose, dtype=np.float64)
+        mean = (p0 + p) / 2
+        mean[2] = wrap_angle(p0[2] + wrap_angle(p[2] - p0[2]) / 2)
+        self._t[-1] = (t0 + t) / 2
+        self._p[-1] = mean
+
+    def since(self, t: float) -> NDArray[np.float64]:
+        """(K, 3) poses stamped t or later, at least the newest (K >= 1 unless empty)."""
+        out: list[NDArray[np.float64]] = []
+        for j in range(len(self._t) - 1, -1, -1):   # from the newest: only the window is visited
+            if self._t[j] < t and out:
+                break
+            out.append(self._p[j])
+        return np.array(out).reshape(-1, 3)
 
     def at(self, t: float, max_extrapolation: float) -> NDArray[np.float64] | None:
         """(3,) pose at time t, linear in x, y and the wrapped heading.

@@ -18,8 +18,9 @@ from fastslam.filter import raycast
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
+from fastslam.filter.proposal import gate_match, match_request
 from fastslam.filter.resample import low_variance_indices, neff, slot_parents
-from fastslam.filter.scan import Beams, Scan, returns_subset, select_beams
+from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses
@@ -174,8 +175,10 @@ class FastSlam:
 
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
-        prior = (self._predicted, self._motion_std) if self.cfg.match_prior == "motion" else None
-        match = match_poses(self.grid, self.poses, beams, self._match_params, prior=prior)
+        start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted,
+                                             self._motion_std)
+        match = match_poses(self.grid, start, beams, params, prior=prior)
+        match = gate_match(self.cfg, match, self._predicted, self._motion_std)
         if match.trusted.any():
             self._sample_around(match)
         return int(match.trusted.sum())
@@ -209,6 +212,10 @@ class FastSlam:
                 dist = endpoint_distances(self.grid, self.poses, sub, max_dist=cfg.likelihood_max_dist)
                 log_w = likelihood_log_weights(dist, sub.hit, cfg.likelihood_sigma,
                                                cfg.likelihood_max_dist, cfg.likelihood_gain)
+                if cfg.likelihood_free > 0:
+                    # end points in known free space with no wall near: the scan contradicts the map there
+                    wrong = (dist >= cfg.likelihood_max_dist) & sub.hit & self._in_free_space(sub)
+                    log_w = log_w - cfg.likelihood_gain * cfg.likelihood_free * wrong.sum(axis=1)
             raycast.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
                                    groups=TRIM_GROUPS, free_step=cfg.free_beam_step)
         else:
@@ -219,6 +226,18 @@ class FastSlam:
         if log_w is not None:
             self.log_w = self.log_w + log_w
             self.log_w -= self.log_w.max()  # only differences matter; keep them small
+
+    def _in_free_space(self, beams: Beams) -> NDArray[np.bool_]:
+        """(N, M) whether each beam's end point seen from each particle falls on a cell its
+        map holds free (log-odds below zero); outside the grid: no."""
+        grid = self.grid
+        h, w = grid.shape
+        x, y = transform_points(self.poses, end_points(beams, np.arange(len(beams.ranges))))
+        ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
+        iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
+        inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+        flat = (np.arange(len(self.poses))[:, None] * h + np.clip(iy, 0, h - 1)) * w + np.clip(ix, 0, w - 1)
+        return inside & (grid.logodds.reshape(-1).take(flat) < 0)
 
     def _resample(self, w: NDArray[np.float64], n_eff: float) -> tuple[bool, NDArray[np.intp]]:
         """Low-variance resampling when due; returns whether, and each slot's parent slot."""

@@ -34,7 +34,7 @@ from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
 from fastslam.match.refine import hill_climb, icp, surface_normals
-from fastslam.match.search import POOL, grid_search, pick, pool_occupied, search_area, window
+from fastslam.match.search import POOL, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -57,12 +57,15 @@ class MatchParams:
     min_known: int = 100         # occupied 4x4-cell blocks in reach needed to trust a match
     refine: str = "hill"         # "hill" or "icp"
     covariance: bool = False     # return the ICP's covariance (refine "icp" only)
+    free_space: bool = False     # end points in known free space count against a candidate, and
+    max_free: float = 1.0        # a match with a larger share of them is not trusted
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
-                   covariance=cfg.match_spread == "match")
+                   covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
+                   max_free=cfg.match_max_free)
 
 
 @dataclass(frozen=True)
@@ -72,11 +75,13 @@ class Match:
     poses: (N, 3) matched poses, map frame (the input poses where nothing was matched).
     trusted: (N,) bool, whether each match passed the checks.
     covariance: (N, 3, 3) of each match (ICP with covariance=True), else None.
+    score: (N,) share of the matched end points on occupied 2x2 blocks (None: no match).
     """
 
     poses: NDArray[np.float64]
     trusted: NDArray[np.bool_]
     covariance: NDArray[np.float64] | None = None
+    score: NDArray[np.float64] | None = None  # (N,) share of the end points on occupied cells
 
 
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
@@ -102,7 +107,8 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     x0, y0, x1, y1 = search_area(grid, poses, local, ka * dth, k0 * coarse, window(grid, poses, reach))
     if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
         return nothing
-    half, quarter = pool_occupied(grid.logodds[:, y0:y1, x0:x1])  # 2x2, 4x4 cells: occupied if any is
+    pool = pool_signed if params.free_space else pool_occupied
+    half, quarter = pool(grid.logodds[:, y0:y1, x0:x1])           # 2x2, 4x4 cells: occupied if any is
     known = np.count_nonzero(quarter > 0, axis=(1, 2))             # (N,) occupied 4x4 blocks in reach
     w_origin = grid.origin + np.array([x0, y0]) * res
     if prior is None:
@@ -130,16 +136,21 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
             cov = inv3(info)
     else:
         pose = hill_climb(grid, pose, local, dth)
-    trusted = (_on_map(pose, local, half, w_origin, res) >= params.min_score) & (known >= params.min_known)
-    return Match(poses=pose, trusted=trusted, covariance=cov)
+    flags = _flags_at(pose, local, half, w_origin, res)
+    score = (flags > 0).mean(axis=1)
+    trusted = (score >= params.min_score) & (known >= params.min_known)
+    if params.free_space:
+        trusted &= (flags < 0).mean(axis=1) <= params.max_free
+    return Match(poses=pose, trusted=trusted, covariance=cov, score=score)
 
 
-def _on_map(pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],
-            w_origin: NDArray[np.float64], res: float) -> NDArray[np.float64]:
-    """(N,) share of the end points local (M, 2) seen from pose (N, 3) that fall on an
-    occupied cell of the 2x2-pooled maps half (N, h, w) with lower-left corner w_origin."""
+def _flags_at(pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],
+              w_origin: NDArray[np.float64], res: float) -> NDArray[np.int8]:
+    """(N, M) flags of the 2x2-pooled maps half (N, h, w), lower-left corner w_origin,
+    under the end points local (M, 2) seen from pose (N, 3): > 0 occupied (< 0 free
+    with pool_signed)."""
     n = len(pose)
     x, y = transform_points(pose, local)
     cx = np.clip(((x - w_origin[0]) / (2 * res)).astype(np.int64), 0, half.shape[2] - 1)
     cy = np.clip(((y - w_origin[1]) / (2 * res)).astype(np.int64), 0, half.shape[1] - 1)
-    return (half[np.arange(n)[:, None], cy, cx] > 0).mean(axis=1)
+    return half[np.arange(n)[:, None], cy, cx]

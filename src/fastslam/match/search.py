@@ -114,9 +114,9 @@ def _nats(scores: NDArray[np.int64], beams: int) -> NDArray[np.float64]:
     return (scores - top) / top * beams
 
 
-def pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+def pool_occupied(level: NDArray[np.int8], above: int = 0) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
     """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
-    2x2 and 4x4 block is occupied (H, W multiples of 4).
+    2x2 and 4x4 block is occupied (log-odds above `above`; H, W multiples of 4).
 
     Column pairs of a contiguous flag array are read as one uint16 each, row pairs
     as the two halves of a doubled row: cheaper than maxima of strided int8 views.
@@ -130,13 +130,50 @@ def pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np
         b = min(n, a + maps)
         rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
                           out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
-        occupied = np.greater(rows, 0, out=rows.view(np.bool_))
+        occupied = np.greater(rows, above, out=rows.view(np.bool_))
         np.not_equal(occupied.view(np.uint16), 0, out=half[a:b])
         pairs = half[a:b].reshape(b - a, h // 4, w)                       # rows 2i, 2i+1 side by side
         quads = np.bitwise_or(pairs[:, :, :w // 2], pairs[:, :, w // 2:],
                               out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
         np.not_equal(quads.view(np.uint16), 0, out=quarter[a:b])
     return half.view(np.int8), quarter.view(np.int8)
+
+
+def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+    """(N, H, W) -> (N, H/2, W/2) and (N, H/4, W/4): +1 where any cell of the 2x2 or 4x4
+    block is occupied, -1 where every cell is known free, 0 otherwise (H, W multiples of 4).
+
+    An end point on a free block contradicts the map (the beam would have ended
+    there before): summed, these flags score a candidate by the end points it puts on
+    walls less those it puts in free space, which a wrong alignment (a turned copy of
+    a room, the wrong side of a wall) cannot hide. The same passes as pool_occupied,
+    for "any occupied" and "any not free" from one maximum of row pairs.
+    """
+    n, h, w = level.shape
+    maps = 8  # at a time
+    half = np.empty((n, h // 2, w // 2), dtype=np.int8)
+    quarter = np.empty((n, h // 4, w // 4), dtype=np.int8)
+    for a in range(0, n, maps):
+        b = min(n, a + maps)
+        rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
+                          out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
+        out2, out4 = [], []
+        for k, above in enumerate((0, -1)):                     # occupied; not known free
+            flags = np.greater(rows, above, out=scratch(f"pool_flags{k}", (b - a, h // 2, w), np.bool_))
+            pair = np.not_equal(flags.view(np.uint16), 0, out=scratch(f"pool_half{k}", (b - a, h // 2, w // 2),
+                                                                     np.bool_))
+            rows2 = pair.reshape(b - a, h // 4, w)               # rows 2i, 2i+1 side by side
+            quads = np.bitwise_or(rows2[:, :, :w // 2], rows2[:, :, w // 2:],
+                                  out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
+            out2.append(pair.view(np.int8))
+            out4.append(np.not_equal(quads.view(np.uint16), 0,
+                                     out=scratch(f"pool_quarter{k}", (b - a, h // 4, w // 4), np.bool_)).view(np.int8))
+        # occupied + not free - 1: +1 occupied, 0 unknown, -1 all free
+        np.add(out2[0], out2[1], out=half[a:b])
+        half[a:b] -= 1
+        np.add(out4[0], out4[1], out=quarter[a:b])
+        quarter[a:b] -= 1
+    return half, quarter
 
 
 def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:

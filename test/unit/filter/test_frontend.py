@@ -52,6 +52,53 @@ def test_kidnap_is_not_integrated():
     np.testing.assert_allclose(f.slam.poses[:, 0], 0.0, atol=1e-12)  # the 10 m jump is not applied
 
 
+def test_a_kidnap_is_judged_by_distance_whatever_the_time():
+    f = front()
+    f.add_odom(1.0, np.zeros(3))
+    f.add_scan(scan(1.0))
+    f.add_odom(201.0, np.array([1000.0, 0.0, 0.0]))   # 1 km after 200 s of silence: 5 m/s
+    f.add_odom(201.1, np.array([1000.1, 0.0, 0.0]))
+    f.add_scan(scan(201.1))
+    assert f.counts == {"odometry kidnap": 1} and "max_odom_jump" in f.events[0]
+    np.testing.assert_allclose(f.slam.poses[:, 0], 0.0, atol=1e-12)
+
+
+def test_a_fast_step_with_made_up_stamps_is_motion():
+    # A log without stamps (spaced 1 ms by the converter) steps 3.5 m between scans.
+    f = front()
+    for i in range(4):
+        f.add_odom(1.0 + 0.001 * i, np.array([3.5 * i, 0.0, 0.0]))
+        f.add_scan(scan(1.0 + 0.001 * i))
+    np.testing.assert_allclose(f.slam.poses[:, 0], 10.5)           # every step integrated
+    assert f.counts == {"odometry out of step": 3} and len(f.events) == 1
+    assert "kidnap" not in f.events[0]
+
+
+def test_two_interleaved_sources_are_merged_not_discarded():
+    # Wheel odometry published twice: the second copy 2 ms later and 3 cm to the side.
+    f = front()
+    for i in range(50):
+        t = 1.0 + 0.1 * i
+        f.add_odom(t, np.array([0.1 * i, 0.0, 0.0]))
+        f.add_odom(t + 0.002, np.array([0.1 * i, 0.03, 0.0]))
+        f.add_scan(scan(t - 0.05 if i else t + 0.01))
+    assert f.counts == {"odometry out of step": 50}
+    assert len(f.events) == 2 and "10 times" in f.events[1]        # at the 1st and 10th firing only
+    # The scans saw the mean of the two sources (merged at t + 1 ms): no 3 cm jitter,
+    # no motion lost. The last scan, at 5.85 s, lies 0.049 s after the mean at 5.801 s.
+    np.testing.assert_allclose(f.slam.poses, [[4.8 + 0.049, 0.015, 0.0]] * 3, atol=1e-9)
+
+
+def test_an_older_message_is_put_in_its_place():
+    f = front()
+    f.add_odom(1.0, np.zeros(3))
+    f.add_odom(2.0, np.array([1.0, 0.0, 0.0]))
+    f.add_odom(1.5, np.array([0.3, 0.0, 0.0]))      # late: between the two
+    f.add_scan(scan(1.25))
+    np.testing.assert_allclose(f.slam.poses[:, 0], 0.15)
+    assert f.counts == {"odometry out of order": 1}
+
+
 def test_slow_sparse_odometry_is_not_a_kidnap():
     f = front()
     f.add_odom(1.0, np.zeros(3))

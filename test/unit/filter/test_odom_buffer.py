@@ -72,3 +72,24 @@ def test_odom_buffer_stays_bounded_when_stamps_freeze():
         buf.add(5.0, np.array([0.001 * i, 0.0, 0.0]))
     assert len(buf) == 100
     np.testing.assert_array_equal(buf.latest[1], [0.999, 0.0, 0.0])   # the newest pose is kept
+
+
+def test_a_late_sample_goes_in_its_place_and_a_full_buffer_makes_room():
+    buf = OdomBuffer(span=10.0, max_samples=3)
+    for t in (1.0, 2.0, 3.0):
+        buf.add(t, np.array([t, 0.0, 0.0]))
+    assert buf.insert(2.5, np.array([10.0, 0.0, 0.0]))       # the oldest (t = 1) makes room
+    assert not buf.insert(1.5, np.zeros(3))                   # before the buffer now: not kept
+    np.testing.assert_allclose(buf.at(2.25, 0.0), [6.0, 0.0, 0.0])   # half-way from 2.0 to the late 10.0
+    np.testing.assert_allclose(buf.since(2.4), [[3.0, 0.0, 0.0], [10.0, 0.0, 0.0]])  # newest first
+    np.testing.assert_allclose(buf.since(99.0), [[3.0, 0.0, 0.0]])                  # at least the newest
+
+
+def test_merging_the_newest_sample_averages_time_pose_and_heading():
+    buf = OdomBuffer()
+    buf.add(1.0, np.array([0.0, 0.0, 3.1]))
+    buf.merge_latest(1.002, np.array([0.02, 0.04, -3.1]))
+    t, p = buf.latest
+    assert t == 1.001
+    np.testing.assert_allclose(p[:2], [0.01, 0.02], atol=1e-12)
+    assert abs(p[2]) == np.pi                                          # the short way round +-pi, not 0

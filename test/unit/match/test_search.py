@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fastslam.filter.grid import GridMaps
-from fastslam.match.search import POOL, _nats, grid_search, pick, pool_occupied, search_area, window
+from fastslam.match.search import POOL, _nats, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 
 def test_pooled_flags_mark_blocks_with_an_occupied_cell():
@@ -15,6 +15,20 @@ def test_pooled_flags_mark_blocks_with_an_occupied_cell():
     half, quarter = pool_occupied(a)
     np.testing.assert_array_equal(half, a.reshape(2, 4, 2, 6, 2).max(axis=(2, 4)) > 0)
     np.testing.assert_array_equal(quarter, a.reshape(2, 2, 4, 3, 4).max(axis=(2, 4)) > 0)
+
+
+def test_signed_pooled_flags_tell_occupied_unknown_and_free_blocks():
+    a = np.full((1, 4, 8), -3, dtype=np.int8)   # all free ...
+    a[0, 0, 0] = 5                              # ... but one occupied cell in the first 2x2 block
+    a[0, 3, 7] = 0                              # and one unknown cell in the last
+    half, quarter = pool_signed(a)
+    np.testing.assert_array_equal(half[0], [[1, -1, -1, -1], [-1, -1, -1, 0]])
+    np.testing.assert_array_equal(quarter[0], [[1, 0]])   # occupied wins; one unknown cell: not all free
+    rng = np.random.default_rng(1)
+    b = rng.integers(-100, 30, (2, 8, 12), dtype=np.int8)
+    half, quarter = pool_signed(b)
+    np.testing.assert_array_equal(half, np.sign(b.reshape(2, 4, 2, 6, 2).max(axis=(2, 4))))
+    np.testing.assert_array_equal(quarter, np.sign(b.reshape(2, 2, 4, 3, 4).max(axis=(2, 4))))
 
 
 def test_pooled_flags_of_one_cell_by_hand():

@@ -1,0 +1,75 @@
+"""What the filter asks of the scan matcher in one update, and which answers it trusts.
+
+The matcher (fastslam.match) is a pure function; these pure functions set its search
+and prior from the motion model of the step, and check its matches against the
+motion model, so the filter and the matcher bench (bench/matcher.py) do the same.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING, Tuple
+
+import numpy as np
+
+from fastslam.config import SlamConfig
+from fastslam.geometry import cos_sin, wrap_angle
+from fastslam.match import Match, MatchParams
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
+    Prior = Tuple[NDArray[np.float64], NDArray[np.float64]]
+
+
+def motion_spread(cfg: SlamConfig, motion_std: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(3,) std-devs along, across and of the heading of the step's motion model, at
+    least match_floor_xy / match_floor_theta (odometry jitters even between close scans)."""
+    return np.maximum(motion_std, [cfg.match_floor_xy, cfg.match_floor_xy, cfg.match_floor_theta])
+
+
+def match_request(cfg: SlamConfig, params: MatchParams, samples: NDArray[np.float64],
+                  predicted: NDArray[np.float64], motion_std: NDArray[np.float64]
+                  ) -> tuple[NDArray[np.float64], MatchParams, Prior | None]:
+    """(start poses (N, 3), search parameters, prior) of the match for particles whose
+    motion samples are samples (N, 3) and noise-free predictions predicted (N, 3).
+
+    match_window > 0: the search spans that many std-devs of the motion model round
+    the prediction (at most match_xy_range / match_theta_range): narrow, and cheap,
+    for the short steps of a full-rate log, as wide as the odometry may err for a
+    long one. Otherwise the fixed half-widths round each particle's sample.
+    """
+    if cfg.match_prior != "motion":
+        return samples, params, None
+    std = motion_spread(cfg, motion_std)
+    if cfg.match_window <= 0:
+        return samples, params, (predicted, std)
+    half = cfg.match_window * std
+    params = replace(params, xy_range=min(cfg.match_xy_range, float(max(half[0], half[1]))),
+                     theta_range=min(cfg.match_theta_range, float(half[2])))
+    return predicted, params, (predicted, std)
+
+
+def within_motion(poses: NDArray[np.float64], predicted: NDArray[np.float64], std: NDArray[np.float64],
+                  gate: float) -> NDArray[np.bool_]:
+    """(N,) whether each pose (N, 3) lies within gate std-devs std (3,) (along and across
+    the predicted heading, heading) of its prediction (N, 3), as a Mahalanobis distance."""
+    c, s = cos_sin(predicted[:, 2])
+    dx, dy = poses[:, 0] - predicted[:, 0], poses[:, 1] - predicted[:, 1]
+    along, across = c * dx + s * dy, c * dy - s * dx
+    turn = wrap_angle(poses[:, 2] - predicted[:, 2])
+    d2 = (along / std[0]) ** 2 + (across / std[1]) ** 2 + (turn / std[2]) ** 2
+    return np.asarray(d2 <= gate ** 2)
+
+
+def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
+               motion_std: NDArray[np.float64]) -> Match:
+    """The match with the trust of those that moved a particle further from its motion
+    prediction than match_gate std-devs withdrawn, unless match_good_score of their end
+    points lie on occupied cells: a poor or ambiguous match (a turned copy of a room, the
+    wrong corridor) explains the scan by a motion the odometry makes implausible, and
+    the particle keeps its motion sample; a good one may correct a wheel slip."""
+    if cfg.match_gate <= 0 or match.score is None:
+        return match
+    good = match.score >= cfg.match_good_score
+    near = within_motion(match.poses, predicted, motion_spread(cfg, motion_std), cfg.match_gate)
+    return replace(match, trusted=match.trusted & (good | near))

@@ -3,13 +3,14 @@ offline runner so that a live replay and an offline run treat every message alik
 
 Odometry is buffered and interpolated at each scan's stamp; a step between two
 odometry messages faster than max_odom_speed is a kidnap (not integrated); time going backwards resets the filter;
-unusable scans are dropped with a reason.
+unusable scans are dropped with a reason. What happened is reported as typed events
+(Kidnap, Reset) for the caller to log and act on.
 """
 from __future__ import annotations
 
 import re
-
 from dataclasses import dataclass, field
+from typing import Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +22,35 @@ from .slam import FastSlam, StepInfo
 
 class Dropped(ValueError):
     """A message that is not used; str() says why."""
+
+
+@dataclass(frozen=True)
+class Kidnap:
+    """Odometry jumped faster than max_odom_speed: the jump is not integrated."""
+
+    jump: float       # [m]
+    seconds: float    # between the two odometry messages
+    max_speed: float  # [m/s]
+
+    def __str__(self) -> str:
+        return (f"odometry jumped {self.jump:.2f} m in {self.seconds:.3f} s (> max_odom_speed "
+                f"{self.max_speed} m/s): treating it as a kidnap, the jump is not integrated")
+
+
+@dataclass(frozen=True)
+class Reset:
+    """Scan time went backwards: the filter starts again (the caller clears what it keeps
+    from before, e.g. tf and map->odom)."""
+
+    previous: float  # stamp of the last scan before [s]
+    stamp: float     # the scan that went back [s]
+
+    def __str__(self) -> str:
+        return (f"resetting the filter: time went backwards ({self.previous:.2f} -> "
+                f"{self.stamp:.2f} s): bag restarted or looped?")
+
+
+Event = Union[Kidnap, Reset]
 
 
 def drop_key(why: str) -> str:
@@ -35,7 +65,7 @@ class Frontend:
     odom_timeout: float = 0.5    # a scan this much newer than the newest odometry is dropped [s]
     odom_buffer: float = 10.0    # [s] of odometry kept
     max_odom_speed: float = 5.0  # [m/s] a step between two odometry messages faster than this is a kidnap
-    events: list[str] = field(default_factory=list)  # warnings for the caller to log, oldest first
+    events: list[Event] = field(default_factory=list)  # for the caller to log and act on, oldest first
 
     def __post_init__(self) -> None:
         self.odom = OdomBuffer(self.odom_buffer)
@@ -55,8 +85,7 @@ class Frontend:
             jump = float(np.hypot(*(pose[:2] - latest[1][:2])))
             # Sparse logs step a metre between messages; a teleport does it in no time.
             if jump > self.max_odom_speed * max(t - latest[0], 1e-3):
-                self.events.append(f"odometry jumped {jump:.2f} m in {t - latest[0]:.3f} s (> max_odom_speed "
-                                   f"{self.max_odom_speed} m/s): treating it as a kidnap, the jump is not integrated")
+                self.events.append(Kidnap(jump, t - latest[0], self.max_odom_speed))
                 self.odom.clear()
                 self._rebase = True
         self.odom.add(t, pose)
@@ -67,8 +96,7 @@ class Frontend:
         if not t > 0:
             raise Dropped("scan stamped zero")
         if self.last_stamp is not None and t < self.last_stamp:
-            self.events.append(f"resetting the filter: time went backwards ({self.last_stamp:.2f} -> "
-                               f"{t:.2f} s): bag restarted or looped?")
+            self.events.append(Reset(self.last_stamp, t))
             self.reset()
         odom = self.odom.at(t, self.odom_timeout)
         if odom is None:

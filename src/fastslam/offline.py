@@ -79,7 +79,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
         except Dropped as err:
             key = drop_key(str(err))
             result.dropped[key] = result.dropped.get(key, 0) + 1
-        result.events += front.events
+        result.events += [str(e) for e in front.events]
         front.events.clear()
         now = time.perf_counter()
         if progress and (now - last_print > 0.5 or result.scans == len(data.scans)):

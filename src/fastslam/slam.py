@@ -18,7 +18,7 @@ from .config import SlamConfig
 from .geometry import circular_mean, compose, cos_sin, wrap_angle
 from .grid import GridMaps
 from .motion import odometry_std, sample_motion_assignment, sample_motion_odometry
-from .resample import low_variance_indices, neff, slot_parents
+from .resample import entropy, low_variance_indices, neff, slot_parents
 from .scan import Beams, Scan, select_beams
 from .weights import assignment_log_weights, likelihood_log_weights, normalise_log
 
@@ -42,6 +42,7 @@ class StepInfo:
     grew: bool = False
     clipped: bool = False
     matched: int = 0  # particles whose pose came from the scan matcher
+    entropy: float = 0.0  # of the weights before resampling [nat]
 
 
 class FastSlam:
@@ -115,7 +116,8 @@ class FastSlam:
         self._record(scan.stamp)
         self.updates += 1
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
-                        seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched)
+                        seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
+                        entropy=entropy(w))
 
     # -- the named steps -------------------------------------------------------------
     def _anchor(self, odom: NDArray) -> None:

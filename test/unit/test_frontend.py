@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from fastslam.config import SlamConfig
-from fastslam.frontend import Dropped, Frontend
+from fastslam.frontend import Dropped, Frontend, Kidnap, Reset
 from fastslam.scan import Scan, laser_problem
 from fastslam.slam import FastSlam
 
@@ -47,7 +47,10 @@ def test_kidnap_is_not_integrated():
     f.add_odom(1.1, np.array([10.0, 0.0, 0.0]))   # 100 m/s
     f.add_odom(1.2, np.array([10.1, 0.0, 0.0]))
     f.add_scan(scan(1.2))
-    assert "kidnap" in f.events[0]
+    (event,) = f.events
+    assert isinstance(event, Kidnap)
+    assert event.jump == pytest.approx(10.0) and event.seconds == pytest.approx(0.1)
+    assert "kidnap" in str(event) and "10.00 m in 0.100 s" in str(event)
     np.testing.assert_allclose(f.slam.poses[:, 0], 0.0, atol=1e-12)  # the 10 m jump is not applied
 
 
@@ -70,7 +73,8 @@ def test_time_going_backwards_resets():
     f.add_odom(0.5, np.array([0.0, 0.0, 0.0]))      # older than the buffer: ignored
     with pytest.raises(Dropped):
         f.add_scan(scan(0.5))                       # reset, then no odometry yet
-    assert "time went backwards" in f.events[0] and f.slam.updates == 0
+    assert f.events == [Reset(previous=2.0, stamp=0.5)] and f.slam.updates == 0
+    assert "time went backwards (2.00 -> 0.50 s)" in str(f.events[0])
     f.add_odom(0.5, np.zeros(3))
     assert f.add_scan(scan(0.5)).processed
 

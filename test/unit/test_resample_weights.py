@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from fastslam.resample import low_variance_indices, neff, slot_parents
+from fastslam.resample import entropy, low_variance_indices, neff, slot_parents
 from fastslam.weights import assignment_log_weights, normalise_log
 
 
@@ -56,3 +56,10 @@ def test_slot_parents_move_only_extra_children():
 def test_neff():
     assert neff(np.full(4, 0.25)) == pytest.approx(4.0)
     assert neff(np.array([1.0, 0, 0, 0])) == pytest.approx(1.0)
+
+
+def test_entropy_of_the_weights_by_hand():
+    assert entropy(np.array([0.0, 1.0, 0.0])) == 0.0                 # one particle holds all
+    assert entropy(np.full(4, 0.25)) == pytest.approx(np.log(4))    # uniform: ln N
+    # 0.5 ln 2 + 2 * 0.25 ln 4 = 1.5 ln 2
+    assert entropy(np.array([0.5, 0.25, 0.25])) == pytest.approx(1.5 * np.log(2))

@@ -82,6 +82,7 @@ class Tick:
     odom_due: bool
     scan: NDArray[np.float64] | None = None
     route_finished: bool = False
+    bumped: bool = False   # the robot ran into a wall in this tick (first tick of a contact only)
 
 
 class Simulation:
@@ -107,6 +108,7 @@ class Simulation:
                                     max_angular=cfg.max_angular) if route is not None else None)
         self._cmd = (0.0, 0.0)
         self._cmd_time = -math.inf
+        self._touching = False
         self.odom_twist = (0.0, 0.0)    # (v, w) as the odometry measured it over the last odom period
 
     @property
@@ -136,7 +138,10 @@ class Simulation:
         else:
             v, w = self._cmd
         self.robot.step(v, w, self.dt)
-        tick = Tick(t=self.time, odom_due=self._due(self.cfg.odom_rate), route_finished=finished)
+        bumped = self.robot.collided and not self._touching
+        # contact lasts while the robot pushes on the wall or stands still against it
+        self._touching = self.robot.collided or (self._touching and v == 0.0)
+        tick = Tick(t=self.time, odom_due=self._due(self.cfg.odom_rate), route_finished=finished, bumped=bumped)
         if tick.odom_due:
             before = self.odom.pose.copy()
             after = self.odom.update(self.robot.pose)

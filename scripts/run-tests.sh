@@ -33,7 +33,7 @@ fi
 
 if [ "$what" = all ] || [ "$what" = rostest ]; then
   # devel/setup.bash reads unset variables: never source it under 'set -u'.
-  source "$here/.ws/devel/setup.bash"
+  source "$(bash "$here/scripts/ws.sh")/devel/setup.bash"
   export ROS_HOME="$outdir/ros_home" ROS_LOG_DIR="$outdir/ros_log"
   for t in ${ROSTESTS:-test/ros/*.test}; do
     [ -e "$t" ] || continue

@@ -25,7 +25,9 @@ log = logging.getLogger(__name__)
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
-_INSTALL_HINT = "reading/writing bags needs rosbags>=0.10: .venv/bin/pip install 'rosbags>=0.10'"
+_INSTALL_HINT = ("reading/writing bags needs the Python package rosbags>=0.10, which Debian does not ship: "
+                 "run the tool with the .venv that `make setup` makes (.venv/bin/python -m ...), or install it "
+                 "for /usr/bin/python3: pip3 install --user --break-system-packages 'rosbags>=0.10'")
 
 
 class BagError(RuntimeError):

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
 from fastslam.sim.lidar import Lidar
-from fastslam.sim.robot import DiffDrive, OdometryModel
+from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR, DiffDrive, OdometryModel
 from fastslam.sim.route import RouteFollower
 from fastslam.sim.world import World
 
@@ -40,8 +40,8 @@ class SimConfig:
     odom_rate: float = _num(30.0, 0.1, 2000.0, "odom, tf and ground_truth rate [Hz]")
     scan_rate: float = _num(5.0, 0.1, 2000.0, "laser rate [Hz] (LDS-01: 5)")
     cmd_vel_timeout: float = _num(1.0, 0.0, 3600.0, "stop after this long without cmd_vel; 0 = never [s]")
-    max_linear: float = _num(0.22, 0.0, 10.0, "[m/s] burger limit")
-    max_angular: float = _num(2.84, 0.0, 100.0, "[rad/s] burger limit")
+    max_linear: float = _num(MAX_LINEAR, 0.0, 10.0, "[m/s] burger limit")
+    max_angular: float = _num(MAX_ANGULAR, 0.0, 100.0, "[rad/s] burger limit")
     robot_radius: float = _num(0.105, 0.0, 2.0, "[m] collision disc")
     num_beams: int = _num(360, 3, 100000, "beams per revolution")
     range_min: float = _num(0.12, 0.0, 100.0, "[m]")

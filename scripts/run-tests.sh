@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Runs every test: pytest (ROS-free core, integration) then each rostest graph test.
+# Runs every test: pytest (ROS-free core, integration), the README's commands (test/user)
+# in a fresh home folder, then each rostest graph test.
 # Ends with one line 'N passed, M failed' and exits non-zero on any failure.
-# Usage: scripts/run-tests.sh [pytest|rostest|all] [extra pytest args...]
+# Usage: scripts/run-tests.sh [pytest|user|rostest|all] [extra pytest args...]
 # TEST_OUT=dir chooses the results folder; ROSTESTS="test/ros/a.test ..." runs only those.
 set -o pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -11,10 +12,12 @@ what="${1:-all}"; shift || true
 outdir="${TEST_OUT:-$here/out/test-results}"; rm -rf "$outdir"; mkdir -p "$outdir"
 passed=0; failed=0
 
-if [ "$what" = all ] || [ "$what" = pytest ]; then
-  python -m pytest -p no:cacheprovider --junitxml="$outdir/pytest.xml" "$@"
-  rc=$?
-  read -r p f < <(python - "$outdir/pytest.xml" <<'PY'
+# pytest on some paths; adds its counts to passed/failed
+run_pytest() {
+  local xml="$1"; shift
+  python -m pytest -p no:cacheprovider --junitxml="$xml" "$@"
+  local rc=$? p f
+  read -r p f < <(python - "$xml" <<'PY'
 import sys, xml.etree.ElementTree as ET
 try:
     root = ET.parse(sys.argv[1]).getroot()
@@ -29,6 +32,16 @@ PY
 )
   [ $rc -ne 0 ] && [ "$f" = 0 ] && f=1
   passed=$((passed + p)); failed=$((failed + f))
+}
+
+if [ "$what" = all ] || [ "$what" = pytest ]; then
+  run_pytest "$outdir/pytest.xml" "$@"
+fi
+
+# The README's commands as a new user types them, in a fresh home folder (test/user).
+if [ "$what" = all ] || [ "$what" = user ]; then
+  echo "=== user paths (test/user): the README's commands in a fresh catkin workspace"
+  run_pytest "$outdir/user.xml" test/user "$@"   # its home folders: pytest's tmp_path, outside the package
 fi
 
 if [ "$what" = all ] || [ "$what" = rostest ]; then

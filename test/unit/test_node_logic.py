@@ -78,3 +78,42 @@ def test_points_in_the_frame_of_a_pose():
 
     out = in_frame_of(np.array([1.0, 2.0, np.pi / 2]), np.array([[1.0, 3.0], [0.0, 2.0]]))
     np.testing.assert_allclose(out, [[1.0, 0.0], [0.0, 1.0]], atol=1e-12)
+
+
+def test_slam_gmapping_names_reach_the_node_and_the_core():
+    notices = []
+    node, core = split_params({"delta": 0.1, "map_update_interval": 5.0, "throttle_scans": 1, "particles": 30},
+                              notices)
+    assert core.map_resolution == 0.1 and core.particles == 30 and node.map_update_interval == 5.0
+    assert len(notices) == 2 and any(n.startswith("throttle_scans=1 (slam_gmapping's) has no counterpart") for n in notices)
+
+
+def test_time_source_problems_are_named():
+    from assign5.watchdog import clock_problem
+
+    text = clock_problem(False, ["/simulator"], 0.0, 5.0)
+    assert text.startswith("/clock is published (by /simulator) but this node runs on wall time")
+    assert "use_sim_time:=true" in text
+    assert clock_problem(True, [], 4.9, 5.0) is None       # a bag may start a moment later
+    assert "nothing has published /clock for 5 s" in clock_problem(True, [], 5.0, 5.0)
+    assert clock_problem(True, ["/play"], 60.0, 5.0) is None and clock_problem(False, [], 60.0, 5.0) is None
+
+
+def test_a_silent_scan_topic_is_named_with_the_laser_topics_there_are():
+    from assign5.watchdog import scan_problem
+
+    text = scan_problem("/laser", 5.0, {"/scan": ["/simulator"], "/base_scan": []})
+    assert text.startswith("no scan received on /laser for 5 s. LaserScan topics there are: "
+                           "/base_scan (from nobody now); /scan (from /simulator).")
+    assert "No topic carries sensor_msgs/LaserScan" in scan_problem("/scan", 5.0, {})
+
+
+def test_map_file_default_lies_in_ros_home(monkeypatch, tmp_path):
+    from assign5.slam_node import map_path
+
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "rh"))
+    assert map_path(NodeConfig().map_file) == str(tmp_path / "rh" / "assign5_map")
+    assert (tmp_path / "rh").is_dir()
+    assert map_path("/abs/map") == "/abs/map"
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert map_path("~/maps/x") == str(tmp_path / "maps" / "x")

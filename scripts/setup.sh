@@ -44,6 +44,17 @@ fi
 
 # The workspace links the whole package folder; it lies outside it (scripts/ws.sh).
 ws="$(bash scripts/ws.sh)"
+# The same requirements kept as wheels beside it: make test sets up a fresh copy of the
+# package (test/user) and must manage without a network (isolated test runs).
+wheels="$(dirname "$ws")/wheels"
+if ! cmp -s scripts/requirements-dev.txt "$wheels/.requirements" 2>/dev/null; then
+  if .venv/bin/python -m pip download -q --disable-pip-version-check -d "$wheels" -r scripts/requirements-dev.txt \
+      >/dev/null 2>&1; then
+    cp scripts/requirements-dev.txt "$wheels/.requirements"
+  else
+    echo "setup: could not keep the requirements' wheels in $wheels (no network?): make test's user paths need them"
+  fi
+fi
 if [ -d .ws ]; then   # the old place, inside the package: rosrun would find its copies of slam.py
   echo "setup: removing .ws/ (the workspace now lives in $ws)"
   rm -rf .ws

@@ -76,6 +76,6 @@ class Watchdog:
             self.clock_seen = now
         self._warn("clock", clock_problem(self.sim_time, clocks, now - self.clock_seen, self.after))
         if self.after > 0 and waited >= self.after and self.scans_seen() == 0:
-            lasers = {t: by_topic.get(t, []) for t, kind in self.master.getTopicTypes()
-                      if kind == "sensor_msgs/LaserScan"}
+            lasers = {t: by_topic[t] for t, kind in self.master.getTopicTypes()
+                      if kind == "sensor_msgs/LaserScan" and by_topic.get(t)}   # published, not just wanted
             self._warn("scan", scan_problem(self.scan_topic, waited, lasers))

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from fastslam.config import SlamConfig
 from usertools import clean, command, readme_commands, wait_until
 
 # Every README command (by its start) -> the test that runs it. `make test` is this very
@@ -132,6 +133,7 @@ def test_a_copied_folder_holds_one_slam_py(user):
     found = user.run(f"find -L {copy} -name slam.py -type f -perm /111", ros=False)
     assert found.stdout.split() == [str(copy / "src" / "slam.py")], found.stdout
     core = user.start(f"roscore -p {user.port}")
+    user.probe("param", "/run_id")   # the master is up
     res = user.run("rosrun assign5 slam.py _particles:=0", timeout=120)
     core.interrupt()
     assert "non-unique" not in res.stdout
@@ -202,13 +204,17 @@ def test_record_replay_and_the_offline_tools(user):
 
 def test_config_takes_a_preset_name_or_a_path(user):
     core = user.start(f"roscore -p {user.port}")
+    user.probe("param", "/run_id")   # the master is up
     (user.home / "mine.yaml").write_text("particles: 7\nproposal: scan_match\n")
     for arg, key, expected in (("burger", "proposal", "scan_match"), ("real", "match_refine", "icp"),
                                ("slam", "proposal", "odometry"), ("burger.yaml", "particles", 20),
                                ("./mine.yaml", "particles", 7), ("~/mine.yaml", "particles", 7),
                                (str(user.home / "mine.yaml"), "proposal", "scan_match")):
         slam = user.start(f"roslaunch assign5 slam.launch config:={arg}")
-        value = wait_until(lambda: user.probe("param", f"/slam/{key}").get("value"), 60, what=f"/slam/{key}")
+        slam.expect("process[slam-", 60)    # roslaunch set the parameters before starting the node
+        # nothing is left from the preset before (clear_params): the defaults fill the rest
+        value = user.probe("param", f"/slam/{key}")["value"]
+        value = SlamConfig().to_dict()[key] if value is None else value
         assert value == expected, (arg, value)
         assert slam.interrupt() == 0
         clean(slam.output(), f"slam.launch config:={arg}")

@@ -124,6 +124,9 @@ class UserMachine:
     def env(self, **extra: str) -> dict:
         env = {k: v for k, v in os.environ.items() if not k.startswith(DROPPED_VARS)}
         env.update(HOME=str(self.home), PATH=user_path(), TERM="dumb", LANG="C.UTF-8")
+        # pip may find no registry here (isolated test runs): make setup kept the wheels
+        env["PIP_FIND_LINKS"] = " ".join(filter(None, (os.environ.get("PIP_FIND_LINKS"), str(wheelhouse()))))
+        env["PIP_RETRIES"] = "0"
         if self.port:  # a master of its own, whatever else runs on this machine
             env["ROS_MASTER_URI"] = f"http://localhost:{self.port}"
         env.update(self.env_extra, **extra)
@@ -243,3 +246,9 @@ def _drain(fd: int, out) -> None:
         if not chunk:
             return
         out.write(chunk)
+
+
+def wheelhouse() -> Path:
+    """Where make setup keeps the requirements' wheels (beside its workspace)."""
+    ws = subprocess.run(["bash", str(REPO / "scripts" / "ws.sh")], capture_output=True, text=True, check=True)
+    return Path(ws.stdout.strip()).parent / "wheels"

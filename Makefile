@@ -14,7 +14,7 @@ help:
 	@echo "make setup       install Debian ROS packages, .venv and build a catkin workspace ($(WS))"
 	@echo "make demo        headless SLAM run on the built-in simulator, results in out/demo/"
 	@echo "make test        every test (pytest + rostest), ends with 'N passed, M failed'"
-	@echo "make bench       speed, memory and accuracy benchmarks (see docs/benchmarks.md)"
+	@echo "make bench [SUITE...]  speed, memory and accuracy benchmarks (see docs/benchmarks.md)"
 	@echo "make screenshot  RViz under xvfb during a simulator run -> docs/rviz.png"
 
 setup:
@@ -35,8 +35,14 @@ test-ros: $(SETUP_STAMP)
 demo: $(SETUP_STAMP)
 	@bash scripts/demo.sh
 
+# `make bench speed accuracy`: the words after "bench" name the suites (default: all).
+ifeq (bench,$(firstword $(MAKECMDGOALS)))
+  SUITES := $(wordlist 2,$(words $(MAKECMDGOALS)),$(MAKECMDGOALS))
+  $(eval $(SUITES):;@:)
+endif
+
 bench: $(SETUP_STAMP)
-	@cd $(CURDIR) && PYTHONPATH=src $(PY) -m fastslam.bench
+	@cd $(CURDIR) && PYTHONPATH=src:. $(PY) -m bench $(SUITES)
 
 screenshot: $(SETUP_STAMP)
 	@bash scripts/screenshot.sh

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Runs every test: pytest (ROS-free core, integration), the README's commands (test/user)
-# in a fresh home folder, then each rostest graph test.
+# Runs every test: ruff, mypy, pytest (ROS-free core, integration), the README's commands
+# (test/user) in a fresh home folder, then each rostest graph test.
 # Ends with one line 'N passed, M failed' and exits non-zero on any failure.
 # Usage: scripts/run-tests.sh [pytest|user|rostest|all] [extra pytest args...]
 # TEST_OUT=dir chooses the results folder; ROSTESTS="test/ros/a.test ..." runs only those.
@@ -12,12 +12,10 @@ what="${1:-all}"; shift || true
 outdir="${TEST_OUT:-$here/out/test-results}"; rm -rf "$outdir"; mkdir -p "$outdir"
 passed=0; failed=0
 
-# pytest on some paths; adds its counts to passed/failed
-run_pytest() {
-  local xml="$1"; shift
-  python -m pytest -p no:cacheprovider --junitxml="$xml" "$@"
-  local rc=$? p f
-  read -r p f < <(python - "$xml" <<'PY'
+# Adds the results of a pytest run (exit code $1, junit file $2) to the counts.
+count_junit() {
+  local rc=$1 p f
+  read -r p f < <(python - "$2" <<'PY'
 import sys, xml.etree.ElementTree as ET
 try:
     root = ET.parse(sys.argv[1]).getroot()
@@ -30,18 +28,26 @@ skip = sum(int(s.get("skipped", 0)) for s in suites)
 print(t - bad - skip, bad + skip)   # a skipped test is not a passed one
 PY
 )
-  [ $rc -ne 0 ] && [ "$f" = 0 ] && f=1
+  [ "$rc" -ne 0 ] && [ "$f" = 0 ] && f=1
   passed=$((passed + p)); failed=$((failed + f))
 }
 
 if [ "$what" = all ] || [ "$what" = pytest ]; then
-  run_pytest "$outdir/pytest.xml" "$@"
+  # Lint and types first: each counts as one test (rules in ruff.toml and mypy.ini).
+  for check in "ruff check ." "mypy"; do
+    if python -m $check > "$outdir/${check%% *}.log" 2>&1; then passed=$((passed + 1))
+    else echo "FAILED $check:"; cat "$outdir/${check%% *}.log"; failed=$((failed + 1)); fi
+  done
+  python -m pytest -p no:cacheprovider --junitxml="$outdir/pytest.xml" "$@"
+  count_junit $? "$outdir/pytest.xml"
 fi
 
-# The README's commands as a new user types them, in a fresh home folder (test/user).
+# The README's commands as a new user types them, in a fresh home folder (test/user; its
+# home folders are pytest's tmp_path, outside the package folder).
 if [ "$what" = all ] || [ "$what" = user ]; then
   echo "=== user paths (test/user): the README's commands in a fresh catkin workspace"
-  run_pytest "$outdir/user.xml" test/user "$@"   # its home folders: pytest's tmp_path, outside the package
+  python -m pytest -p no:cacheprovider --junitxml="$outdir/user.xml" test/user "$@"
+  count_junit $? "$outdir/user.xml"
 fi
 
 if [ "$what" = all ] || [ "$what" = rostest ]; then

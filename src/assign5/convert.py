@@ -9,11 +9,11 @@ from geometry_msgs.msg import Pose, PoseArray, PoseStamped, Quaternion, Transfor
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
 from sensor_msgs.msg import LaserScan
 
-from fastslam.frontend import Dropped as BadMessage  # a message the node drops, str() says why
+from fastslam.filter.frontend import Dropped as BadMessage  # a message the node drops, str() says why
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.scan import Scan, laser_problem
 from fastslam.geometry import yaw_from_quaternion
-from fastslam.grid import GridMaps
-from fastslam.io.transforms import mount_from_matrix, transform_matrix
-from fastslam.scan import Scan, laser_problem
+from fastslam.transforms import mount_from_matrix, transform_matrix
 
 
 def quaternion_from_yaw(yaw: float) -> Quaternion:

@@ -38,7 +38,8 @@ class NodeConfig:
     odom_timeout: float = _num(0.5, 0.0, 60.0, "a scan this much newer than the latest odometry waits/drops [s]")
     odom_wait: float = _num(0.1, 0.0, 5.0, "wall time a scan waits for odometry at its stamp [s]")
     odom_buffer: float = _num(10.0, 0.5, 600.0, "seconds of odometry kept for interpolation [s]")
-    max_odom_speed: float = _num(5.0, 0.01, 1000.0, "odometry stepping faster than this between two messages is a kidnap [m/s]")
+    max_odom_speed: float = _num(5.0, 0.01, 1000.0,
+                                 "odometry stepping faster than this between two messages is a kidnap [m/s]")
     max_future: float = _num(1.0, 0.0, 3600.0, "scans stamped further ahead of now are rejected [s]")
     tf_timeout: float = _num(0.2, 0.0, 10.0, "how long to wait for the laser's mounting in tf [s]")
     queue_size: int = _num(1, 1, 100, "scan subscriber queue; 1 drops scans the node cannot keep up with")

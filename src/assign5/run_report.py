@@ -19,13 +19,13 @@ from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetMap
 from std_msgs.msg import Bool, Float64
 
+from fastslam.eval.maps import run_quality
+from fastslam.eval.render import render_map, write_png
 from fastslam.fields import ConfigError, check_fields
 from fastslam.fields import num as _num
 from fastslam.geometry import relative, yaw_from_quaternion
-from fastslam.io.mapfile import save_map
-from fastslam.io.png import render_map, write_png
-from fastslam.metrics import run_quality
-from fastslam.sim.world import load_world
+from fastslam.io.map_files import save_map
+from fastslam.sim.world_loader import load_world
 
 from . import convert, params
 

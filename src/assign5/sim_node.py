@@ -189,6 +189,6 @@ class SimNode:
             if delay > 0.0:
                 time.sleep(delay)
             elif delay < -0.5:            # fell far behind (slow machine): do not burst to catch up
-                rospy.logwarn_throttle(10.0, "simulator: cannot keep up with speed %.2f" % self.speed)
+                rospy.logwarn_throttle(10.0, f"simulator: cannot keep up with speed {self.speed:.2f}")
                 wall0, k0 = time.monotonic(), self.sim.k
 

@@ -17,10 +17,10 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger, TriggerResponse
 
 from fastslam.config import SlamConfig
+from fastslam.filter.frontend import Dropped, Frontend, Reset, drop_key
+from fastslam.filter.slam import FastSlam
 from fastslam.geometry import compose, inverse
-from fastslam.io.mapfile import MapSaveError, save_map
-from fastslam.frontend import Dropped, Frontend, Reset, drop_key
-from fastslam.slam import FastSlam
+from fastslam.io.map_files import MapSaveError, save_map
 
 from . import convert
 from .convert import BadMessage

@@ -70,7 +70,7 @@ class Watchdog:
         now = time.monotonic()
         waited = now - self.start
         publishers, _, _ = self.master.getSystemState()
-        by_topic = {t: nodes for t, nodes in publishers}
+        by_topic: dict[str, list[str]] = dict(publishers)
         clocks = by_topic.get("/clock", [])
         if clocks:
             self.clock_seen = now

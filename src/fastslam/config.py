@@ -8,6 +8,7 @@ fields that default to the assignment's behaviour.
 """
 from __future__ import annotations
 
+import builtins  # gmapping's parameter `str` below shadows the type in the class body
 import dataclasses
 import logging
 import math
@@ -16,10 +17,11 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+from numpy.typing import NDArray
 
-from .fields import ConfigError, check_fields, coerce
-from .fields import choice as _choice
-from .fields import num as _num
+from fastslam.fields import ConfigError, check_fields, coerce
+from fastslam.fields import choice as _choice
+from fastslam.fields import num as _num
 
 __all__ = ["ConfigError", "SlamConfig", "parse_override", "translate_gmapping"]
 
@@ -39,7 +41,8 @@ class SlamConfig:
     map_width: float = _num(10.0, 0.5, 2000.0, "initial map extent along x [m]")
     map_height: float = _num(10.0, 0.5, 2000.0, "initial map extent along y [m]")
     map_grow: bool = field(default=True, metadata={"doc": "grow the grid when the robot nears its edge"})
-    map_grow_fraction: float = _num(0.5, 0.0, 10.0, "a side of the grid that grows adds at least this share of its size")
+    map_grow_fraction: float = _num(0.5, 0.0, 10.0,
+                                    "a side of the grid that grows adds at least this share of its size")
     init_sigma_xy: float = _num(0.0, 0.0, 10.0, "spread of the initial particle positions [m]")
     init_sigma_theta: float = _num(0.0, 0.0, math.pi, "spread of the initial headings [rad]")
     # Motion (assignment 3.2)
@@ -62,33 +65,36 @@ class SlamConfig:
     fov_min: float = _num(-180.0, -180.0, 180.0, "first beam angle used, robot frame [deg]")
     fov_max: float = _num(180.0, -180.0, 180.0, "last beam angle used, robot frame [deg]")
     beam_step: int = _num(1, 1, 10000, "use every k-th beam")
-    free_beam_step: int = _num(1, 1, 10000, "likelihood mode: clear free space along every k-th used beam only (all mark their end cells)")
+    free_beam_step: int = _num(1, 1, 10000, "likelihood mode: clear free space along every k-th used beam only "
+                                            "(all mark their end cells)")
     max_range: float = _num(3.5, 0.1, 200.0, "ranges are used up to this distance [m]")
-    no_return_range: float = _num(3.5, 0.0, 200.0, "a beam with no return clears free space this far; 0 = not at all [m]")
+    no_return_range: float = _num(3.5, 0.0, 200.0,
+                                  "a beam with no return clears free space this far; 0 = not at all [m]")
     # Weights (assignment 3.4) and resampling (3.5)
-    weight_model: str = _choice("assignment", ("assignment", "likelihood"),
+    weight_model: builtins.str = _choice("assignment", ("assignment", "likelihood"),
                                 "assignment: 1/(||d-z||+1); likelihood: endpoint model in log-weights")
     likelihood_sigma: float = _num(0.05, 1e-3, 10.0, "likelihood model: endpoint std-dev [m]")
     likelihood_max_dist: float = _num(0.3, 1e-3, 10.0, "likelihood model: distance cap per beam [m]")
     likelihood_gain: float = _num(1.0, 1e-6, 1.0, "likelihood model: exponent on the scan likelihood (smoothing)")
     resample_threshold: float = _num(1.0, 0.0, 1.0, "resample when Neff < threshold*N; 1.0 = every update")
     # Proposal (improved mode)
-    proposal: str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
+    proposal: builtins.str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
     match_min_score: float = _num(0.5, 0.0, 1.0, "scan-match score (fraction of beams on the map) needed to trust it")
-    match_min_known: int = _num(100, 0, 10**9, "occupied 4x4-cell blocks a particle's map needs within scan reach before matching")
+    match_min_known: int = _num(100, 0, 10**9,
+                                "occupied 4x4-cell blocks a particle's map needs within scan reach before matching")
     match_beams: int = _num(60, 4, 10000, "scan-match with at most this many returns, evenly spread")
     match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")
     match_sigma_xy: float = _num(0.01, 0.0, 1.0, "spread of the sample around a matched pose [m]")
     match_sigma_theta: float = _num(0.005, 0.0, 1.0, "spread of the sample around a matched pose [rad]")
-    match_prior: str = _choice("window", ("window", "motion"),
+    match_prior: builtins.str = _choice("window", ("window", "motion"),
                                "odometry prior of the match: window: centred on the particle's sample, "
                                "std-dev half the search window; motion: centred on the noise-free "
                                "prediction, std-dev from srr/srt/str/stt for this step")
-    match_spread: str = _choice("fixed", ("fixed", "match"),
+    match_spread: builtins.str = _choice("fixed", ("fixed", "match"),
                                 "spread of the sample around a match: fixed: match_sigma_*; match: the "
                                 "ICP's covariance (inverse Hessian with the prior; match_refine: icp only)")
-    match_refine: str = _choice("hill", ("hill", "icp"),
+    match_refine: builtins.str = _choice("hill", ("hill", "icp"),
                                 "last stage of the match: hill: climb the interpolated evidence; "
                                 "icp: Gauss-Newton on end point to nearest occupied cell, with the prior")
     # Update gating (improved mode); zeros process every scan as the assignment does
@@ -121,12 +127,12 @@ class SlamConfig:
         return None if self.seed < 0 else self.seed
 
     @property
-    def motion_sigmas(self) -> np.ndarray:
+    def motion_sigmas(self) -> NDArray[np.float64]:
         """(3,) additive noise std-devs, zero when the noise toggle is off."""
-        return np.array([self.sigma_x, self.sigma_y, self.sigma_theta]) * self.toggle_noise
+        return np.array([self.sigma_x, self.sigma_y, self.sigma_theta]) * float(self.toggle_noise)
 
     @classmethod
-    def from_dict(cls, values: Mapping[str, Any], *, notices: list[str] | None = None) -> SlamConfig:
+    def from_dict(cls, values: Mapping[builtins.str, Any], *, notices: list[builtins.str] | None = None) -> SlamConfig:
         """Build from a flat mapping; unknown keys and bad values raise ConfigError.
 
         slam_gmapping's parameter names are read as ours (translate_gmapping); each one
@@ -141,11 +147,16 @@ class SlamConfig:
         return cls(**coerce(cls, ours))
 
     @classmethod
-    def from_yaml(cls, path: str | Path, overrides: Mapping[str, Any] | None = None, *,
-                  notices: list[str] | None = None) -> SlamConfig:
+    def from_yaml(cls, path: builtins.str | Path, overrides: Mapping[builtins.str, Any] | None = None, *,
+                  notices: list[builtins.str] | None = None) -> SlamConfig:
         import yaml  # only file loading needs it
 
-        data = yaml.safe_load(Path(path).read_text()) or {}
+        try:
+            data = yaml.safe_load(Path(path).read_text()) or {}
+        except yaml.YAMLError as err:
+            where = getattr(err, "problem_mark", None)
+            line = f" line {where.line + 1}" if where is not None else ""
+            raise ConfigError(f"{path}:{line}: not valid YAML ({getattr(err, 'problem', None) or err})") from None
         if not isinstance(data, dict):
             raise ConfigError(f"{path}: expected a mapping of parameters, got {type(data).__name__}")
         data.update(overrides or {})
@@ -154,7 +165,7 @@ class SlamConfig:
     def replace(self, **changes: Any) -> SlamConfig:
         return self.from_dict({**self.to_dict(), **changes})
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[builtins.str, Any]:
         return dataclasses.asdict(self)
 
 

@@ -1,19 +1,24 @@
-"""Score an estimated 2D trajectory against a reference (ATE and RPE).
+"""Score an estimated 2D trajectory against a reference (ATE and RPE), or against
+ground-truth relations (the Kuemmerle et al. 2009 metric).
 
     python -m fastslam.evaluate REFERENCE ESTIMATE [--max-dt 0.05] [--interpolate] [--delta 1] [--json]
+    python -m fastslam.evaluate --relations FILE ESTIMATE [--json]
 
-Both files hold ``t x y theta`` lines (``#`` comments allowed), e.g. ``out.bag.gt.txt``
-from ``python -m fastslam.carmen`` and a SLAM run's trajectory. See
-:mod:`fastslam.trajectory_metrics` for the definitions.
+Trajectory files hold ``t x y theta`` lines or TUM's ``t x y z qx qy qz qw`` (``#``
+comments allowed), e.g. ``out.bag.gt.txt`` from ``python -m fastslam.carmen_to_bag`` and a
+SLAM run's trajectory; a relations file ``t1 t2 x y z roll pitch yaw`` lines. See
+:mod:`fastslam.eval.trajectory` for the definitions.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+from typing import Any
 
-from fastslam.io.trajectory import TrajectoryError, read_trajectory
-from fastslam.trajectory_metrics import TrajectoryScores, score
+from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score
+from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory
 
 
 def format_table(s: TrajectoryScores) -> str:
@@ -27,18 +32,41 @@ def format_table(s: TrajectoryScores) -> str:
     return "\n".join(f"{k:<{width}}  {v:>10}" for k, v in rows)
 
 
+def format_relations(s: RelationScores) -> str:
+    """Human-readable relations metric: mean +- std (max) per error."""
+    rows = [("relations", f"{s.relations} ({s.outside} outside the estimate's time span, clamped)"),
+            ("translation [m]", f"{s.trans_mean:.4f} +- {s.trans_std:.4f} (max {s.trans_max:.4f})"),
+            ("rotation [deg]", f"{s.rot_mean:.4f} +- {s.rot_std:.4f} (max {s.rot_max:.4f})")]
+    return "\n".join(f"{k:<16} {v}" for k, v in rows)
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m fastslam.evaluate", description=__doc__.split("\n")[0])
-    ap.add_argument("reference", help="reference trajectory (t x y theta)")
-    ap.add_argument("estimate", help="estimated trajectory (t x y theta)")
+    ap = argparse.ArgumentParser(prog="python -m fastslam.evaluate", description=__doc__.split("\n\n")[0])
+    ap.add_argument("files", nargs="+", metavar="REFERENCE ESTIMATE",
+                    help="reference and estimated trajectories; with --relations the estimate only")
+    ap.add_argument("--relations", metavar="FILE", help="score the estimate against these relations instead")
     ap.add_argument("--max-dt", type=float, default=0.05, help="nearest-time matching tolerance [s]")
     ap.add_argument("--interpolate", action="store_true", help="interpolate the reference instead")
     ap.add_argument("--delta", type=int, default=1, help="RPE over matched poses this many apart")
     ap.add_argument("--json", action="store_true", help="print the scores as JSON")
     args = ap.parse_args(argv)
+    wanted = 1 if args.relations else 2
+    if len(args.files) != wanted:
+        ap.error("--relations FILE takes one ESTIMATE" if args.relations else "expected REFERENCE ESTIMATE")
+    if args.delta < 1 or not args.max_dt >= 0:
+        print(f"error: --delta must be at least 1 (got {args.delta}) and --max-dt at least 0 (got {args.max_dt})",
+              file=sys.stderr)
+        return 2
     try:
-        ref_t, ref = read_trajectory(args.reference)
-        est_t, est = read_trajectory(args.estimate)
+        if args.relations:
+            relations = read_relations(args.relations)
+            est_t, est = read_trajectory(args.files[0])
+            if len(est_t) == 0:
+                raise TrajectoryError(f"{args.files[0]}: no poses")
+            r = relations_score(est_t, est, relations)
+            return _report(r.as_dict(), format_relations(r), args.json)
+        ref_t, ref = read_trajectory(args.files[0])
+        est_t, est = read_trajectory(args.files[1])
     except TrajectoryError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -46,7 +74,18 @@ def main(argv: list[str] | None = None) -> int:
     if s.matched == 0:
         print(f"error: no estimate pose within {args.max_dt} s of a reference pose", file=sys.stderr)
         return 1
-    print(json.dumps(s.as_dict(), indent=2) if args.json else format_table(s))
+    return _report(s.as_dict(), format_table(s), args.json)
+
+
+def _report(scores: dict[str, Any], table: str, as_json: bool) -> int:
+    """Prints the scores; exit 1 with a clear line when one is not a number (too few
+    poses for it), and JSON with null in its place (JSON has no NaN)."""
+    missing = [k for k, v in scores.items() if isinstance(v, float) and not math.isfinite(v)]
+    clean = {k: (None if k in missing else v) for k, v in scores.items()}
+    print(json.dumps(clean, indent=2, allow_nan=False) if as_json else table)
+    if missing:
+        print(f"error: {', '.join(missing)} could not be computed (too few matched poses?)", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -43,25 +43,29 @@ def check_fields(obj: Any) -> None:
 
 def coerce(cls: type, values: Mapping[str, Any]) -> dict[str, Any]:
     """Field values of cls from a plain mapping: unknown keys and wrong types raise."""
-    kinds = {f.name: str(f.type) for f in dataclasses.fields(cls)}
+    fields = {f.name: f for f in dataclasses.fields(cls)}
     out: dict[str, Any] = {}
     for key, v in values.items():
-        if key not in kinds:
-            raise ConfigError(f"unknown parameter '{key}' (known: {', '.join(sorted(kinds))})")
-        out[key] = _coerce_one(key, kinds[key], v)
+        if key not in fields:
+            raise ConfigError(f"unknown parameter '{key}' (known: {', '.join(sorted(fields))})")
+        # a switch in [0, 1] (toggle_noise) also takes true/false; a count never does
+        switch = fields[key].metadata.get("range") == (0, 1)
+        out[key] = _coerce_one(key, str(fields[key].type), v, bool_as_int=switch)
     return out
 
 
-def _coerce_one(key: str, kind: str, v: Any) -> Any:
+def _coerce_one(key: str, kind: str, v: Any, *, bool_as_int: bool = False) -> Any:
     if v is None and "None" in kind:
         return None
-    base = kind.split("|")[0].strip()
+    base = kind.split("|")[0].split("[")[0].strip().replace("builtins.", "")
     if base == "bool":
         if isinstance(v, bool) or v in (0, 1):
             return bool(v)
         raise ConfigError(f"{key}={v!r} must be true or false")
     if base == "int":
-        if isinstance(v, (int, float)) and float(v).is_integer():  # True/False pass as 1/0 (toggle_noise)
+        if isinstance(v, bool) and not bool_as_int:
+            raise ConfigError(f"{key}={v!r} must be an integer, not true/false")
+        if isinstance(v, (int, float)) and float(v).is_integer():
             return int(v)
         raise ConfigError(f"{key}={v!r} must be an integer")
     if base == "float":

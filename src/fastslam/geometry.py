@@ -32,6 +32,17 @@ def compose(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
                      wrap_angle(a[..., 2] + b[..., 2])], axis=-1)
 
 
+def transform_points(poses: ArrayLike, local: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Points local (M, 2), given in the frame of each pose (..., 3), in the poses'
+    parent frame: x and y, each (..., M)."""
+    poses = np.asarray(poses, dtype=float)
+    local = np.asarray(local, dtype=float)
+    c, s = cos_sin(poses[..., 2, None])
+    x = poses[..., 0, None] + c * local[:, 0] - s * local[:, 1]
+    y = poses[..., 1, None] + s * local[:, 0] + c * local[:, 1]
+    return x, y
+
+
 def inverse(a: ArrayLike) -> NDArray[np.float64]:
     """The pose p with a (+) p = identity."""
     a = np.asarray(a, dtype=float)
@@ -78,7 +89,8 @@ def inv3(m: NDArray[np.float64]) -> NDArray[np.float64]:
 def solve3(m: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
     """(..., 3) solutions x of m (..., 3, 3) x = v (..., 3)."""
     inv = inv3(m)
-    return inv[..., 0] * v[..., 0, None] + inv[..., 1] * v[..., 1, None] + inv[..., 2] * v[..., 2, None]
+    return np.asarray(inv[..., 0] * v[..., 0, None] + inv[..., 1] * v[..., 1, None] + inv[..., 2] * v[..., 2, None],
+                      dtype=np.float64)
 
 
 def cholesky3(m: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -1,13 +1,18 @@
 """Offline FastSLAM on a ROS 1 bag, without a master, far faster than real time.
 
     python -m fastslam.offline BAG --out DIR [--config FILE] [--set key=value]...
-                               [--seed N] [--scan-topic T] [--odom-topic T]
+                               [--seed N] [--scan-topic T] [--odom-topic T] [--format tum]
 
 Reads the bag with `rosbags`, takes the laser mounting from /tf_static or /tf, feeds
 every scan and odometry message through the same Frontend and FastSlam.step as the
 slam.py node, and writes DIR/map.pgm + map.yaml (map_server format), map.png,
-trajectory.txt (t x y theta of the final best particle, one line per processed
-scan, header stamps), stats.json and the effective config.yaml.
+stats.json, the effective config.yaml and three trajectories (header stamps;
+`t x y theta`, or TUM's `t x y z qx qy qz qw` with --format tum):
+trajectory.txt, the final best particle, one pose per processed scan;
+trajectory_scans.txt, the same path at every scan the filter saw, the odometry since
+the last processed scan composed onto it in between; live_poses.txt, one pose per
+scan as map->odom gave it during the run: the best particle at the last processed
+scan, composed with the odometry since.
 """
 from __future__ import annotations
 
@@ -21,15 +26,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from .config import ConfigError, SlamConfig, parse_override
-from .frontend import Dropped, Frontend, drop_key
-from .io.bag import BagData, BagError, OdomRecord, read_bag
-from .io.mapfile import save_map
-from .io.png import render_map, write_png
-from .io.trajectory import write_trajectory
-from .scan import Scan, laser_problem
-from .slam import FastSlam
+from fastslam.config import ConfigError, SlamConfig, parse_override
+from fastslam.eval.render import render_map, write_png
+from fastslam.filter.frontend import Dropped, Frontend, drop_key
+from fastslam.filter.scan import Scan, laser_problem
+from fastslam.filter.slam import FastSlam
+from fastslam.geometry import compose, inverse, relative
+from fastslam.io.bag_reader import BagData, read_bag
+from fastslam.io.map_files import save_map
+from fastslam.io.records import BagError, OdomRecord
+from fastslam.io.staging import staged_folder
+from fastslam.io.trajectory_files import FORMATS, write_trajectory
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "slam.yaml"
 
@@ -43,6 +52,32 @@ class OfflineResult:
     update_ms: list[float] = field(default_factory=list)
     dropped: dict[str, int] = field(default_factory=dict)
     events: list[str] = field(default_factory=list)
+    # one row per scan the filter saw: t, odometry x y theta, live pose x y theta,
+    # index of the last processed update, filter life (resets before it), processed (0/1)
+    scan_rows: list[list[float]] = field(default_factory=list)
+
+    def live_poses(self) -> NDArray[np.float64]:
+        """(S, 4) rows t, x, y, theta: map->odom composed with the odometry at every scan."""
+        rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
+        return rows[:, [0, 4, 5, 6]]
+
+    def scan_trajectory(self) -> NDArray[np.float64]:
+        """(S, 4) rows t, x, y, theta: the final best particle's path at every scan of the
+        filter's last life; between processed scans, the odometry since the last one
+        composed onto its pose."""
+        rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
+        rows = rows[rows[:, 8] == rows[-1, 8]] if len(rows) else rows
+        if not len(rows):
+            return np.zeros((0, 4))
+        t, odom = rows[:, 0], rows[:, 1:4]
+        k = rows[:, 7].astype(np.intp)
+        done = rows[:, 9] > 0
+        traj = self.slam.trajectory()
+        at_update = np.empty((len(traj), 3))
+        at_update[k[done]] = odom[done]          # odometry of each processed scan
+        poses = compose(traj[k, 1:], relative(at_update[k], odom))
+        poses[done] = traj[k[done], 1:]          # exactly, not through a zero motion
+        return np.concatenate([t[:, None], poses], axis=1)
 
     def stats(self) -> dict[str, Any]:
         ms = np.array(self.update_ms) if self.update_ms else np.zeros(1)
@@ -59,6 +94,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
     result = OfflineResult(slam=slam)
     mount = (data.mount.x, data.mount.y, data.mount.yaw)
     bag_span = (data.scans[-1].t - data.scans[0].t) if data.scans else 0.0
+    map_to_odom = np.zeros(3)
     start = last_print = time.perf_counter()
     for rec in data.records():
         try:
@@ -73,9 +109,15 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
             scan = Scan.from_laser(rec.ranges, rec.angle_min, rec.angle_increment, rec.range_min,
                                    rec.range_max, mount=mount, upside_down=data.mount.upside_down, stamp=rec.t)
             info = front.add_scan(scan)
+            odom = front.scan_odom
+            assert odom is not None  # every add_scan that returns sets it
             if info.processed:
                 result.updates += 1
                 result.update_ms.append(1000.0 * info.seconds)
+                map_to_odom = compose(slam.poses[slam.best], inverse(odom))
+            live = slam.poses[slam.best] if info.processed else compose(map_to_odom, odom)
+            result.scan_rows.append([rec.t, *odom.tolist(), *live.tolist(), slam.updates - 1, front.resets,
+                                     float(info.processed)])
         except Dropped as err:
             key = drop_key(str(err))
             result.dropped[key] = result.dropped.get(key, 0) + 1
@@ -100,22 +142,41 @@ def _progress(done: int, total: int, wall: float, bag_span: float) -> None:
           end="", file=sys.stderr, flush=True)
 
 
-def write_results(out: Path, result: OfflineResult, cfg: SlamConfig) -> None:
+def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = "xytheta") -> None:
+    """Writes every output into the folder out (which exists)."""
     import yaml
 
-    out.mkdir(parents=True, exist_ok=True)
     slam = result.slam
     grid = slam.grid
     occ = slam.best_occupancy()
     origin = (float(grid.origin[0]), float(grid.origin[1]), 0.0)
     save_map(out / "map", occ, grid.resolution, origin)
     traj = slam.trajectory()
-    write_trajectory(out / "trajectory.txt", traj[:, 0], traj[:, 1:],
-                     comment="final best particle, one pose per processed scan: t x y theta")
+    write_trajectory(out / "trajectory.txt", traj[:, 0], traj[:, 1:], fmt=fmt,
+                     comment="final best particle, one pose per processed scan")
+    every = result.scan_trajectory()
+    write_trajectory(out / "trajectory_scans.txt", every[:, 0], every[:, 1:], fmt=fmt,
+                     comment="final best particle at every scan: its pose at the last processed scan "
+                             "composed with the odometry since")
+    live = result.live_poses()
+    write_trajectory(out / "live_poses.txt", live[:, 0], live[:, 1:], fmt=fmt,
+                     comment="live map->odom composed with the odometry, one pose per scan: the best "
+                             "particle at the last processed scan composed with the odometry since")
     write_png(out / "map.png", render_map(occ, grid.resolution, origin,
                                           {"estimate": (traj[:, 1:3], (220, 0, 0))}, scale=2))
     (out / "stats.json").write_text(json.dumps(result.stats(), indent=2) + "\n")
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+
+
+class NothingUsable(ValueError):
+    """The bag holds nothing the filter can use; str() says why."""
+
+
+def _check_usable(data: BagData) -> None:
+    if not data.scans:
+        raise NothingUsable(f"the bag has no scans on {data.scan_topic}")
+    if not data.odoms:
+        raise NothingUsable(f"the bag has no odometry on {data.odom_topic}: the filter needs both")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -127,22 +188,41 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, help="RNG seed (overrides the config)")
     parser.add_argument("--scan-topic", help="default: the only LaserScan topic")
     parser.add_argument("--odom-topic", help="default: the only Odometry topic")
+    parser.add_argument("--format", choices=FORMATS, default="xytheta",
+                        help="trajectory files: t x y theta (default) or TUM's t x y z qx qy qz qw")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    out = Path(args.out)
     try:
         overrides = dict(parse_override(s) for s in args.set)
         if args.seed is not None:
             overrides["seed"] = args.seed
         cfg = SlamConfig.from_yaml(args.config, overrides)
-        data = read_bag(args.bag, args.scan_topic, args.odom_topic)
-    except (ConfigError, BagError, OSError) as err:
+        with staged_folder(out) as work:   # checked before the run; filled only if it succeeds
+            data = read_bag(args.bag, args.scan_topic, args.odom_topic)
+            _check_usable(data)
+            for parent, child in data.bad_tf:
+                if not data.mount.found:
+                    raise BagError(f"the laser's mounting {data.mount.base_frame} -> {data.mount.laser_frame} "
+                                   f"cannot be read: tf {parent} -> {child} has a zero quaternion")
+                print(f"warning: tf {parent} -> {child} has a zero quaternion: ignored", file=sys.stderr)
+            if not data.mount.found:
+                print(f"warning: no tf from '{data.mount.base_frame}' to '{data.mount.laser_frame}' in the bag; "
+                      "assuming the laser sits at the base origin", file=sys.stderr)
+            result = run_bag(data, cfg, progress=not args.quiet)
+            if result.updates == 0:
+                why = ", ".join(f"{k} ({n})" for k, n in result.dropped.items()) or "none was due"
+                raise NothingUsable(f"none of the bag's {result.scans} scans could be used: {why}")
+            write_results(work, result, cfg, args.format)
+    except OSError as err:  # the message without "[Errno N]"
+        print(f"error: {err.strerror or err}" + (f": {err.filename}" if err.filename else ""), file=sys.stderr)
+        return 2
+    except (ConfigError, BagError, NothingUsable) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    if not data.mount.found:
-        print(f"warning: no tf from '{data.mount.base_frame}' to '{data.mount.laser_frame}' in the bag; "
-              "assuming the laser sits at the base origin", file=sys.stderr)
-    result = run_bag(data, cfg, progress=not args.quiet)
-    write_results(Path(args.out), result, cfg)
+    except KeyboardInterrupt:
+        print("interrupted: nothing written", file=sys.stderr)
+        return 130
     for event in result.events:
         print(f"warning: {event}", file=sys.stderr)
     s = result.stats()

@@ -17,12 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.common import data_path
 from fastslam import simrun
 from fastslam.config import SlamConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = Path(__file__).with_name("golden.json")
-INTEL = ROOT.parent / "shared" / "data" / "intel-corrected.log.gz"
+INTEL = data_path("intel-corrected.log.gz")
 SIM_SECONDS = 60.0  # of the turtlebot3_world route: ~300 scans
 
 
@@ -51,7 +52,7 @@ def sim_case(preset: str) -> dict[str, str]:
 
 
 def intel_case() -> dict[str, str]:
-    from fastslam.bench_accuracy import intel_run
+    from bench.modes import intel_run
 
     cfg = SlamConfig.from_yaml(ROOT / "config" / "real.yaml", {"seed": 0})
     slam = intel_run(cfg, 0, log_path=INTEL, limit=300)[0]

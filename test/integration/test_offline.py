@@ -5,13 +5,17 @@ import numpy as np
 
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
-from fastslam.io.bag import StaticTransform, read_bag, write_bag
-from fastslam.io.mapfile import load_map
-from fastslam.io.trajectory import read_trajectory
+from fastslam.eval.trajectory import interpolate_poses
+from fastslam.geometry import relative
+from fastslam.io.bag_reader import read_bag
+from fastslam.io.bag_writer import write_bag
+from fastslam.io.map_files import load_map
+from fastslam.io.trajectory_files import read_trajectory
+from fastslam.transforms import StaticTransform
 
 
-def test_bag_replay_equals_the_direct_run(tmp_path):
-    cfg = SlamConfig.from_yaml("config/slam.yaml", {"seed": 3, "particles": 8})
+def test_bag_replay_equals_the_direct_run(tmp_path, repo_root):
+    cfg = SlamConfig.from_yaml(repo_root / "config" / "slam.yaml", {"seed": 3, "particles": 8})
     direct = simrun.run("room", cfg, seed=1, record=True, max_time=40.0)
     bag = tmp_path / "room.bag"
     write_bag(bag, direct.scans, direct.odoms,
@@ -25,8 +29,8 @@ def test_bag_replay_equals_the_direct_run(tmp_path):
     assert np.array_equal(replay.slam.grid.logodds, direct.slam.grid.logodds)
 
 
-def test_cli_writes_map_trajectory_and_stats(tmp_path, capsys):
-    cfg = SlamConfig.from_yaml("config/slam.yaml", {"seed": 0, "particles": 4})
+def test_cli_writes_map_trajectory_and_stats(tmp_path, capsys, repo_root):
+    cfg = SlamConfig.from_yaml(repo_root / "config" / "slam.yaml", {"seed": 0, "particles": 4})
     direct = simrun.run("room", cfg, seed=0, record=True, max_time=10.0)
     bag = tmp_path / "short.bag"
     write_bag(bag, direct.scans, direct.odoms,
@@ -44,8 +48,73 @@ def test_cli_writes_map_trajectory_and_stats(tmp_path, capsys):
     assert "particles: 4" in (out / "config.yaml").read_text()
 
 
-def test_cli_reports_a_bad_parameter_and_a_missing_bag(tmp_path, capsys):
-    assert offline.main([str(tmp_path / "none.bag"), "--out", str(tmp_path)]) == 2
-    assert "no bag at" in capsys.readouterr().err
-    assert offline.main([str(tmp_path / "none.bag"), "--out", str(tmp_path), "--set", "particles=0"]) == 2
-    assert "particles=0 must be in" in capsys.readouterr().err
+def _sim_bag(tmp_path, seconds: float):
+    cfg = SlamConfig.from_yaml("config/slam.yaml", {"seed": 0, "particles": 4})
+    direct = simrun.run("room", cfg, seed=0, record=True, max_time=seconds)
+    bag = tmp_path / "sim.bag"
+    write_bag(bag, direct.scans, direct.odoms,
+              static_transforms=[StaticTransform.planar("base_footprint", "base_scan", x=-0.032)])
+    return bag
+
+
+def _odom_at(data, t):
+    """The bag's odometry interpolated at times t, as the frontend does."""
+    od = data.odom_poses()
+    return interpolate_poses(od[:, 0], od[:, 1:], t)
+
+
+def test_a_pose_for_every_scan_follows_odometry_between_updates(tmp_path):
+    # One particle moved exactly by odometry (noise off, exact motion model), scans
+    # processed only every 0.3 m or 0.3 rad: every pose written, at processed scans
+    # or between them, must be the odometry at that scan (map frame = odom frame).
+    bag = _sim_bag(tmp_path, 20.0)
+    out = tmp_path / "out"
+    sets = ["particles=1", "toggle_noise=0", "motion_model=odometry", "linear_update=0.3", "angular_update=0.3"]
+    assert offline.main([str(bag), "--out", str(out), "--seed", "0", "--quiet",
+                         *[a for s in sets for a in ("--set", s)]]) == 0
+    data = read_bag(bag)
+    stats = json.loads((out / "stats.json").read_text())
+    assert stats["updates"] < stats["scans"] / 3          # gating left most scans unprocessed
+    for name in ("trajectory_scans.txt", "live_poses.txt"):
+        t, poses = read_trajectory(out / name)
+        assert len(t) == stats["scans"] == len(data.scans)
+        np.testing.assert_allclose(poses, _odom_at(data, t), rtol=0, atol=1e-9)
+    t_proc, _ = read_trajectory(out / "trajectory.txt")
+    assert len(t_proc) == stats["updates"]
+
+
+def test_every_scan_pose_is_the_processed_pose_plus_odometry(tmp_path):
+    bag = _sim_bag(tmp_path, 20.0)
+    data = read_bag(bag)
+    cfg = SlamConfig.from_yaml("config/real.yaml", {"seed": 1, "particles": 5, "linear_update": 0.2,
+                                                    "angular_update": 0.3, "map_width": 10, "map_height": 10})
+    result = offline.run_bag(data, cfg)
+    every, traj = result.scan_trajectory(), result.slam.trajectory()
+    assert len(every) == len(data.scans) and 0 < len(traj) < len(every) / 2
+    at = np.searchsorted(every[:, 0], traj[:, 0])
+    np.testing.assert_array_equal(every[at], traj)          # processed scans: the trajectory itself
+    # between processed scans the path moves exactly as odometry does
+    odom = _odom_at(data, every[:, 0])
+    gap = np.setdiff1d(np.arange(1, len(every)), at)
+    np.testing.assert_allclose(relative(every[gap - 1, 1:], every[gap, 1:]),
+                               relative(odom[gap - 1], odom[gap]), rtol=0, atol=1e-9)
+    # live: at a processed scan the best particle of that moment, so the first agrees
+    live = result.live_poses()
+    np.testing.assert_array_equal(live[0], every[0])
+    assert not np.allclose(live[:, 1:], every[:, 1:], atol=1e-6)  # not the same estimate (hindsight vs live)
+
+
+def test_tum_format(tmp_path):
+    bag = _sim_bag(tmp_path, 6.0)
+    plain, tum = tmp_path / "plain", tmp_path / "tum"
+    for out, extra in ((plain, []), (tum, ["--format", "tum"])):
+        assert offline.main([str(bag), "--out", str(out), "--set", "particles=2", "--seed", "0", "--quiet",
+                             *extra]) == 0
+    for name in ("trajectory.txt", "trajectory_scans.txt", "live_poses.txt"):
+        line = next(ln for ln in (tum / name).read_text().splitlines() if not ln.startswith("#"))
+        assert len(line.split()) == 8
+        t0, p0 = read_trajectory(plain / name)
+        t1, p1 = read_trajectory(tum / name)
+        np.testing.assert_array_equal(t0, t1)
+        np.testing.assert_array_equal(p0[:, :2], p1[:, :2])
+        np.testing.assert_allclose(np.cos(p0[:, 2] - p1[:, 2]), 1.0, rtol=0, atol=1e-12)

@@ -3,11 +3,11 @@ so the filter clears no free space through the wall; the contact is reported onc
 import numpy as np
 
 from fastslam.config import SlamConfig
-from fastslam.scan import Scan
+from fastslam.filter.scan import Scan
+from fastslam.filter.slam import FastSlam
 from fastslam.sim.lidar import driver_ranges
 from fastslam.sim.sim import SimConfig, Simulation
 from fastslam.sim.world import world_from_dict
-from fastslam.slam import FastSlam
 
 BOX = world_from_dict({"spawn": [0.0, 0.0, 0.0],
                        "polygons": [{"points": [[-2, -2], [2, -2], [2, 2], [-2, 2]], "solid": False}]})

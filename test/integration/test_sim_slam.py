@@ -4,7 +4,7 @@ import pytest
 
 from fastslam import simrun
 from fastslam.config import SlamConfig
-from fastslam.metrics import OCCUPIED, in_frame_of, nearest_distance
+from fastslam.eval.maps import OCCUPIED, in_frame_of, nearest_distance
 
 
 def occupied_distances(run):

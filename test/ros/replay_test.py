@@ -20,8 +20,10 @@ from nav_msgs.msg import Path
 from assign5.params import split_params
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
-from fastslam.io.bag import BagData, StaticTransform, read_bag, write_bag
-from fastslam.metrics import trajectory_errors
+from fastslam.eval.maps import trajectory_errors
+from fastslam.io.bag_reader import BagData, read_bag
+from fastslam.io.bag_writer import write_bag
+from fastslam.transforms import StaticTransform
 
 
 class Replay(unittest.TestCase):

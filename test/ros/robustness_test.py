@@ -28,11 +28,10 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from fastslam.sim.lidar import cast_rays
-from fastslam.sim.world import world_from_dict
+from fastslam.sim.world_loader import load_world
 
-ROOM = world_from_dict({"polygons": [{"points": [[-2.5, -2.5], [2.5, -2.5], [2.5, 2.5], [-2.5, 2.5]],
-                                      "solid": False}], "circles": [[1.0, 1.0, 0.3]]})
 ANGLES = np.radians(np.arange(360.0))
+ROOM = load_world(os.path.join(os.path.dirname(__file__), "..", "..", "worlds", "pillar_room.yaml"))
 
 
 class Connected(rospy.SubscribeListener):

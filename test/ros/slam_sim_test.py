@@ -123,8 +123,8 @@ class SlamOnSimulator(unittest.TestCase):
 
         from assign5.params import split_params
         from fastslam import offline
-        from fastslam.io.bag import read_bag
-        from fastslam.metrics import trajectory_errors
+        from fastslam.eval.maps import trajectory_errors
+        from fastslam.io.bag_reader import read_bag
 
         prefix = rospy.get_param("~bag_prefix")
         self.assertTrue(self.recorder.done.wait(rospy.get_param("~route_timeout", 300.0)), "route never finished")
@@ -141,7 +141,7 @@ class SlamOnSimulator(unittest.TestCase):
         with self.recorder.lock:
             truth = np.array(self.recorder.truth)
         from fastslam.geometry import relative
-        from fastslam.sim.world import load_world
+        from fastslam.sim.world_loader import load_world
 
         spawn = load_world(rospy.get_param("~world_file")).spawn
         err = trajectory_errors(result.slam.trajectory(), np.c_[truth[:, 0], relative(spawn, truth[:, 1:])])

@@ -1,10 +1,14 @@
+"""SlamConfig: the assignment's defaults, errors that name the parameter, derived values."""
+from __future__ import annotations
+
+import numpy as np
 import pytest
 
 from fastslam.config import ConfigError, SlamConfig, parse_override
 
 
-def test_yaml_defaults_are_the_assignment(tmp_path):
-    cfg = SlamConfig.from_yaml("config/slam.yaml")
+def test_yaml_defaults_are_the_assignment(repo_root):
+    cfg = SlamConfig.from_yaml(repo_root / "config" / "slam.yaml")
     assert cfg.particles == 20
     assert cfg.map_resolution == 0.05
     assert (cfg.map_width, cfg.map_height) == (10.0, 10.0)
@@ -90,3 +94,53 @@ def test_without_a_notice_list_the_notices_are_logged(caplog):
     with caplog.at_level("WARNING", logger="fastslam.config"):
         assert SlamConfig.from_dict({"delta": 0.1}).map_resolution == 0.1
     assert [r.getMessage() for r in caplog.records] == ["delta=0.1 (slam_gmapping's) read as map_resolution=0.1"]
+
+
+def test_match_spread_needs_icp():
+    with pytest.raises(ConfigError, match="match_spread"):
+        SlamConfig(match_spread="match", match_refine="hill")
+
+
+def test_log_odds_steps_and_clamps_keep_their_signs():
+    with pytest.raises(ConfigError, match=r"l_min=1.0 must be in \[-100.0, -1e-06\]"):
+        SlamConfig(l_min=1.0)
+    with pytest.raises(ConfigError, match=r"l_max=-1.0 must be in \[1e-06, 100.0\]"):
+        SlamConfig(l_max=-1.0)
+    with pytest.raises(ConfigError, match="l_free=0.4 must be in"):
+        SlamConfig.from_dict({"l_free": 0.4})
+
+
+def test_derived_values():
+    cfg = SlamConfig(map_width=3.0, map_height=1.0, map_resolution=0.2, sigma_x=0.1, sigma_y=0.2, sigma_theta=0.3)
+    assert cfg.grid_shape == (5, 15)                     # (H, W): 1.0 / 0.2 rows, 3.0 / 0.2 columns
+    np.testing.assert_allclose(cfg.motion_sigmas, [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(cfg.replace(toggle_noise=0).motion_sigmas, [0.0, 0.0, 0.0])
+    assert SlamConfig(seed=-1).rng_seed is None and SlamConfig(seed=0).rng_seed == 0
+
+
+def test_from_yaml_applies_overrides_and_to_dict_round_trips(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("particles: 7\nmap_resolution: 0.1\n")
+    cfg = SlamConfig.from_yaml(path, {"particles": 9, "seed": 3})
+    assert (cfg.particles, cfg.map_resolution, cfg.seed) == (9, 0.1, 3)
+    assert SlamConfig.from_dict(cfg.to_dict()) == cfg
+    (tmp_path / "empty.yaml").write_text("")
+    assert SlamConfig.from_yaml(tmp_path / "empty.yaml") == SlamConfig()
+
+
+def test_override_values_are_read_as_yaml():
+    assert parse_override("match_refine=icp") == ("match_refine", "icp")
+    assert parse_override(" map_grow = false") == ("map_grow", False)
+    assert parse_override("l_free=-0.5") == ("l_free", -0.5)
+    with pytest.raises(ConfigError, match="key=value"):
+        parse_override("=3")
+
+
+def test_a_count_rejects_true_and_false_but_the_noise_switch_takes_them():
+    # `particles:=true` on a roslaunch line used to become 1 particle, silently
+    with pytest.raises(ConfigError, match="particles=True must be an integer, not true/false"):
+        SlamConfig.from_dict({"particles": True})
+    with pytest.raises(ConfigError, match="beam_step=False"):
+        SlamConfig.from_dict({"beam_step": False})
+    assert SlamConfig.from_dict({"toggle_noise": False}).toggle_noise == 0
+    assert SlamConfig.from_dict({"toggle_noise": True}).toggle_noise == 1

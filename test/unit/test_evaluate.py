@@ -1,4 +1,4 @@
-"""Trajectory metrics (ATE after 2D alignment, RPE, time matching) and the evaluate CLI."""
+"""python -m fastslam.evaluate: scores printed as a table or JSON, errors as one line and an exit code."""
 from __future__ import annotations
 
 import json
@@ -8,102 +8,13 @@ import numpy as np
 import pytest
 
 from fastslam import evaluate
-from fastslam.io.trajectory import TrajectoryError, read_trajectory, write_trajectory
-from fastslam.trajectory_metrics import align_2d, apply_alignment, ate, match_by_time, rpe, score
-
-
-def loop(rng: np.random.Generator, n: int = 100) -> np.ndarray:
-    th = np.cumsum(rng.uniform(-0.3, 0.3, n))
-    xy = np.cumsum(np.column_stack([np.cos(th), np.sin(th)]), axis=0)
-    return np.column_stack([xy, th])
+from fastslam.eval.trajectory import TrajectoryScores, apply_alignment
+from fastslam.io.trajectory_files import write_trajectory
 
 
 def moved(poses: np.ndarray, angle: float, shift: tuple[float, float]) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return apply_alignment(np.array([[c, -s], [s, c]]), np.array(shift), poses)
-
-
-def test_rigidly_moved_copy_scores_zero():
-    ref = loop(np.random.default_rng(0))
-    est = moved(ref, 0.7, (5.0, -2.0))
-    assert ate(ref, est) < 1e-9
-    trans, rot = rpe(ref, est)
-    assert trans < 1e-9 and rot < 1e-9
-
-
-def test_alignment_recovers_the_inverse_motion():
-    ref = loop(np.random.default_rng(1))
-    rot, t = align_2d(moved(ref, -2.5, (1.0, 3.0)), ref)
-    assert math.atan2(rot[1, 0], rot[0, 0]) == pytest.approx(2.5, abs=1e-12)
-
-
-def test_alternating_offsets_give_their_size():
-    ref = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float)
-    est = ref + [[0, 0.1, 0], [0, -0.1, 0], [0, -0.1, 0], [0, 0.1, 0]]
-    # symmetric offsets: the best alignment is the identity, every error is 0.1
-    assert ate(ref, est) == pytest.approx(0.1, abs=1e-12)
-
-
-def test_scaled_square_cannot_be_aligned_away():
-    ref = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]], float)
-    est = ref.copy()
-    est[:, :2] = 1 + 1.1 * (ref[:, :2] - 1)          # 10 % bigger about the centre
-    # no scale in the alignment: each corner is 0.1 * sqrt(2) off
-    assert ate(ref, moved(est, 0.3, (4, 4))) == pytest.approx(0.1 * math.sqrt(2), abs=1e-12)
-
-
-def test_rpe_of_too_long_steps():
-    ref = np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)])
-    est = np.column_stack([1.1 * np.arange(5.0), np.zeros(5), np.zeros(5)])
-    trans, rot = rpe(ref, est)
-    assert trans == pytest.approx(0.1) and rot == pytest.approx(0.0)
-    assert rpe(ref, est, delta=2)[0] == pytest.approx(0.2)
-
-
-def test_rpe_of_a_constant_heading_error():
-    ref = np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)])
-    est = ref.copy()
-    est[:, 2] = 0.1     # same positions, heading off by 0.1: each 1 m step looks rotated by -0.1
-    trans, rot = rpe(ref, est)
-    assert trans == pytest.approx(2 * math.sin(0.05)) and rot == pytest.approx(0.0, abs=1e-12)
-
-
-def test_nearest_time_matching_drops_far_poses():
-    ref_t, ref = np.array([0.0, 1.0, 2.0]), np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float)
-    t, r, e = match_by_time(ref_t, ref, [0.01, 1.5, 2.04], np.ones((3, 3)), max_dt=0.05)
-    np.testing.assert_array_equal(t, [0.01, 2.04])
-    np.testing.assert_array_equal(r[:, 0], [0.0, 2.0])
-
-
-def test_interpolated_matching_wraps_the_heading():
-    ref_t, ref = np.array([0.0, 1.0]), np.array([[0, 0, 3.0], [2, 4, -3.0]])
-    t, r, _ = match_by_time(ref_t, ref, [0.5, 1.5], np.zeros((2, 3)), interpolate=True)
-    np.testing.assert_array_equal(t, [0.5])        # 1.5 lies outside the reference
-    np.testing.assert_allclose(r[0, :2], [1.0, 2.0])
-    assert abs(r[0, 2]) == pytest.approx(math.pi)   # half-way the short way round, not 0
-
-
-def test_score_counts_matches():
-    ref = loop(np.random.default_rng(2), 20)
-    t = np.arange(20) * 0.1
-    s = score(t, ref, t + 0.01, moved(ref, 1.0, (2, 2)), max_dt=0.02)
-    assert s.matched == 20 and s.ate_rmse < 1e-9 and s.ate_max < 1e-9
-
-
-def test_trajectory_files_round_trip_and_skip_comments(tmp_path):
-    poses = loop(np.random.default_rng(3), 10)
-    path = write_trajectory(tmp_path / "a.txt", np.arange(10) * 0.5, poses, comment="two\nlines")
-    text = path.read_text()
-    assert text.startswith("# two\n# lines\n# t x y theta\n")
-    t, p = read_trajectory(path)
-    np.testing.assert_array_equal(t, np.arange(10) * 0.5)
-    np.testing.assert_array_equal(p, poses)
-
-
-def test_bad_trajectory_line(tmp_path):
-    (tmp_path / "b.txt").write_text("0 1 2 3\n1 2 3\n")
-    with pytest.raises(TrajectoryError, match="b.txt:2"):
-        read_trajectory(tmp_path / "b.txt")
 
 
 def test_cli_prints_json(tmp_path, capsys):
@@ -126,3 +37,70 @@ def test_cli_table_and_errors(tmp_path, capsys):
     assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "far.txt")]) == 1
     assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "missing.txt")]) == 2
     assert "cannot read trajectory" in capsys.readouterr().err
+
+
+def test_table_lines():
+    s = TrajectoryScores(matched=12, ate_rmse=0.12345, ate_mean=0.1, ate_max=0.5, rpe_trans=0.01,
+                         rpe_rot=1.5, rpe_delta=2)
+    lines = evaluate.format_table(s).splitlines()
+    assert lines[0].split() == ["matched", "poses", "12"]
+    assert lines[1].endswith("0.1235") and lines[4].startswith("RPE trans rmse [m / 2 pose]")
+    assert lines[5].split()[-1] == "1.5000"
+    assert len({len(line) for line in lines}) == 1                  # one column of values
+
+
+def test_cli_options_change_the_matching(tmp_path, capsys):
+    write_trajectory(tmp_path / "ref.txt", [0.0, 1.0, 2.0], [[0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    write_trajectory(tmp_path / "est.txt", [0.5, 1.5], [[0.5, 0, 0], [1.5, 0, 0]])
+    ref, est = str(tmp_path / "ref.txt"), str(tmp_path / "est.txt")
+    assert evaluate.main([ref, est]) == 1                            # 0.5 s from every reference pose
+    assert "no estimate pose within 0.05 s" in capsys.readouterr().err
+    assert evaluate.main([ref, est, "--max-dt", "0.5", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["matched"] == 2
+    assert evaluate.main([ref, est, "--interpolate", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["matched"] == 2 and out["ate_max"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_cli_relations_json_and_tum_estimate(tmp_path, capsys, relations_case):
+    write_trajectory(tmp_path / "est.tum", relations_case.t, relations_case.poses, fmt="tum")
+    assert evaluate.main(["--relations", str(relations_case.path), str(tmp_path / "est.tum"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["relations"] == 2 and out["trans_mean"] == pytest.approx(0.25, abs=1e-12)
+    assert out["rot_max"] == pytest.approx(45.0, abs=1e-9)
+
+
+def test_cli_relations_errors(tmp_path, capsys, relations_case):
+    write_trajectory(tmp_path / "est.txt", relations_case.t, relations_case.poses)
+    (tmp_path / "bad.relations").write_text("1 2 3\n")
+    assert evaluate.main(["--relations", str(tmp_path / "bad.relations"), str(tmp_path / "est.txt")]) == 2
+    assert "bad.relations:1" in capsys.readouterr().err
+    assert evaluate.main(["--relations", str(tmp_path / "none"), str(tmp_path / "est.txt")]) == 2
+    assert "cannot read relations" in capsys.readouterr().err
+
+
+def test_scores_that_cannot_be_computed_exit_1_with_valid_json(tmp_path, capsys):
+    (tmp_path / "ref.txt").write_text("1 0 0 0\n2 1 0 0\n")
+    (tmp_path / "one.txt").write_text("1 0 0 0\n")          # one matched pose: no relative error
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "one.txt"), "--json"]) == 1
+    out, err = capsys.readouterr()
+    scores = json.loads(out)                                 # NaN would not parse as JSON
+    assert scores["rpe_trans"] is None and scores["rpe_rot"] is None and scores["ate_rmse"] == 0.0
+    assert err.strip() == "error: rpe_trans, rpe_rot could not be computed (too few matched poses?)"
+
+
+def test_binary_files_and_bad_options_are_one_line_errors(tmp_path, capsys):
+    (tmp_path / "ref.txt").write_text("1 0 0 0\n2 1 0 0\n")
+    (tmp_path / "bin.txt").write_bytes(bytes(range(256)))
+    (tmp_path / "nan.txt").write_text("1 0 0 0\n2 nan 0 0\n")
+    cases = [([str(tmp_path / "ref.txt"), str(tmp_path / "bin.txt")], f"error: {tmp_path / 'bin.txt'} is not a "
+              "text file of trajectory lines"),
+             ([str(tmp_path / "ref.txt"), str(tmp_path / "nan.txt")], f"error: {tmp_path / 'nan.txt'}:2: NaN or "
+              "infinite values: '2 nan 0 0'"),
+             ([str(tmp_path / "ref.txt"), str(tmp_path / "ref.txt"), "--delta", "0"],
+              "error: --delta must be at least 1 (got 0) and --max-dt at least 0 (got 0.05)"),
+             (["--relations", str(tmp_path / "bin.txt"), str(tmp_path / "ref.txt")],
+              f"error: {tmp_path / 'bin.txt'} is not a text file of relations lines")]
+    for args, line in cases:
+        assert evaluate.main(args) == 2
+        assert capsys.readouterr().err.strip() == line

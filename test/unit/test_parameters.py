@@ -102,7 +102,8 @@ def test_launch_arguments_override_a_yaml_key_only_when_given(path):
             assert used, f"{path.name}: {name} is fixed over its YAML"
             arg = used.group(1)
             assert p.get("if") == f"$(eval arg('{arg}') != '')", f"{path.name}: {name} set even when {arg} is empty"
-            assert args[arg] == "", f"{path.name}: argument {arg} defaults to {args[arg]!r}, overriding the YAML's {name}"
+            assert args[arg] == "", (f"{path.name}: argument {arg} defaults to {args[arg]!r}, "
+                                     f"overriding the YAML's {name}")
 
 
 def test_launch_files_leave_use_sim_time_alone_unless_they_run_a_clock():

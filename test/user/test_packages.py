@@ -8,7 +8,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from usertools import REPO
+REPO = Path(__file__).resolve().parents[2]
 
 ROS_COMMANDS = re.compile(r"\b(rosrun|roslaunch|rostest|rosbag|rosservice|rostopic|rosparam|rosnode|roscore|rosmaster"
                           r"|catkin_make|catkin_find|rospack)\b")

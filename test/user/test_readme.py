@@ -4,15 +4,16 @@ README explains (DATE: the date in the name of the recorded bag) are filled in.
 """
 from __future__ import annotations
 
+import inspect
 import json
 import math
 import re
-from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
-import pytest
 import yaml
+
 from fastslam.config import SlamConfig
-from usertools import clean, command, readme_commands, wait_until
 
 # Every README command (by its start) -> the test that runs it. `make test` is this very
 # suite; the packages installed by hand are what the machine already has (test_packages
@@ -32,19 +33,21 @@ COMMANDS = {
     "roslaunch assign5 slam.launch use_sim_time:=true": "test_record_replay_and_the_offline_tools",
     "rosbag play --clock ~/.ros/assign5_DATE.bag": "test_record_replay_and_the_offline_tools",
     "PYTHONPATH=src .venv/bin/python -m fastslam.offline ~/.ros/": "test_record_replay_and_the_offline_tools",
-    "PYTHONPATH=src .venv/bin/python -m fastslam.carmen": "test_record_replay_and_the_offline_tools",
+    "PYTHONPATH=src .venv/bin/python -m fastslam.carmen_to_bag": "test_record_replay_and_the_offline_tools",
     "PYTHONPATH=src .venv/bin/python -m fastslam.offline intel.bag": "test_record_replay_and_the_offline_tools",
     "PYTHONPATH=src .venv/bin/python -m fastslam.evaluate": "test_record_replay_and_the_offline_tools",
+    "PYTHONPATH=src .venv/bin/python -m fastslam.offline ../shared/data/mit-csail.bag": "test_the_relations_metric",
+    "PYTHONPATH=src .venv/bin/python -m fastslam.evaluate --relations": "test_the_relations_metric",
     "rosrun assign5 evaluate.py": "test_record_replay_and_the_offline_tools",
     "rosrun assign5 offline.py": "test_record_replay_and_the_offline_tools",
 }
 
 
-def readme(start: str) -> str:
+def readme_line(readme: SimpleNamespace, start: str) -> str:
     """The README's command that starts with start (its comment dropped); fails if none."""
-    found = [command(line) for line in readme_commands() if matches(command(line), start)]
+    found = [readme.command(line) for line in readme.commands() if matches(readme.command(line), start)]
     assert len(found) == 1, f"the README has {len(found)} commands starting with {start!r}"
-    return found[0]
+    return str(found[0])
 
 
 def matches(line: str, start: str) -> bool:
@@ -52,35 +55,31 @@ def matches(line: str, start: str) -> bool:
     return line.startswith(start) and not any(len(k) > len(start) and line.startswith(k) for k in COMMANDS)
 
 
-def run_line(start: str) -> str:
+def run_line(readme: SimpleNamespace, start: str) -> str:
     assert start in COMMANDS, f"{start!r}: add it to COMMANDS"
-    return readme(start)
+    return readme_line(readme, start)
 
 
-def test_every_readme_command_is_run_by_a_test():
-    import inspect
-
-    from conftest import assignment_block
-
-    lines = [command(line) for line in readme_commands()
+def test_every_readme_command_is_run_by_a_test(readme: SimpleNamespace) -> None:
+    lines = [readme.command(line) for line in readme.commands()
              if not line.startswith(("apt-get install", "/usr/bin/python3 -m venv"))]
     for line in lines:
         owners = [k for k in COMMANDS if matches(line, k)]
         assert len(owners) == 1, f"README command {line!r}: no test runs it" if not owners else owners
     for start, test in COMMANDS.items():
-        readme(start)  # each entry is a README command
+        readme_line(readme, start)  # each entry is a README command
         if test == "machine":
-            assert any(command(line).startswith(start) for line in assignment_block())
+            assert any(readme.command(line).startswith(start) for line in readme.assignment_block())
         elif test is not None:
-            assert repr(start) in inspect.getsource(globals()[test]) or f'"{start}"' in inspect.getsource(
-                globals()[test]), f"{test} does not run {start!r}"
+            source = inspect.getsource(globals()[test])
+            assert f'run_line(readme, "{start}")' in source, f"{test} does not run {start!r}"
 
 
-def test_make_demo(machine):
-    run_line("make demo")
+def test_make_demo(machine: Any, readme: SimpleNamespace) -> None:
+    run_line(readme, "make demo")
     assert machine.demo_status == 0, machine.demo_output[-3000:]
     assert "demo: done" in machine.demo_output
-    clean(machine.demo_output, "make demo")
+    readme.clean(machine.demo_output, "make demo")
     metrics = json.loads((machine.clone / "out" / "demo" / "metrics.json").read_text())
     assert metrics["trajectory_rms_m"] < 0.10 and metrics["boundary_recall"] > 0.90
     assert metrics["spurious_fraction"] < 0.05 and metrics["processed_scans"] > 300
@@ -88,17 +87,17 @@ def test_make_demo(machine):
         assert (machine.clone / "out" / "demo" / name).stat().st_size > 0
 
 
-def test_demo_of_the_assignments_filter(machine):
-    res = machine.run(run_line("scripts/demo.sh config:=slam"), cwd=machine.clone, ros=False, timeout=900)
+def test_demo_of_the_assignments_filter(machine: Any, readme: SimpleNamespace) -> None:
+    res = machine.run(run_line(readme, "scripts/demo.sh config:=slam"), cwd=machine.clone, ros=False, timeout=900)
     assert res.returncode == 0, res.stdout[-3000:]
-    clean(res.stdout, "scripts/demo.sh config:=slam")
+    readme.clean(res.stdout, "scripts/demo.sh config:=slam")
     metrics = json.loads((machine.clone / "out" / "demo" / "metrics.json").read_text())
     # the assignment's flat weight lets the particles wander by decimetres (README)
     assert metrics["trajectory_rms_m"] < 0.3 and metrics["boundary_recall"] > 0.7
 
 
-def test_the_assignments_way(user):
-    burger = user.start(run_line("roslaunch assign5 burger.launch") + " rviz:=false")
+def test_the_assignments_way(user: Any, readme: SimpleNamespace) -> None:
+    burger = user.start(run_line(readme, "roslaunch assign5 burger.launch") + " rviz:=false")
     particles = user.probe("message", "/particles", "geometry_msgs/PoseArray", "60")
     assert particles.get("poses") == 20, particles
     grid = user.probe("message", "/map", "nav_msgs/OccupancyGrid", "30")
@@ -107,7 +106,7 @@ def test_the_assignments_way(user):
     frames = user.probe("frames", str(user.ws / "src" / "assign5" / "rviz" / "slam.rviz"), "20", timeout=200)
     assert frames and all(v.endswith(": ok") for v in frames.values()), frames
 
-    teleop = user.start(run_line("roslaunch assign5 teleop.launch"), tty=True)
+    teleop = user.start(run_line(readme, "roslaunch assign5 teleop.launch"), tty=True)
     teleop.expect("CTRL-C to quit", 60)
     teleop.type(b"w" * 10)                      # 0.1 m/s
     moved = user.probe("moved", "30", "0.15")
@@ -117,16 +116,16 @@ def test_the_assignments_way(user):
     teleop.expect("linear vel 0.00", 10)
     teleop.type(b"\x03")                        # Ctrl-C: teleop quits, its roslaunch ends
     assert teleop.wait(60) == 0, teleop.output()[-2000:]
-    clean(teleop.output(), "roslaunch assign5 teleop.launch")
+    readme.clean(teleop.output(), "roslaunch assign5 teleop.launch")
 
     assert burger.interrupt() == 0
-    clean(burger.output(), "roslaunch assign5 burger.launch")
+    readme.clean(burger.output(), "roslaunch assign5 burger.launch")
     saved = user.home / ".ros" / "assign5_map.yaml"
     assert saved.is_file() and saved.with_suffix(".pgm").stat().st_size > 1000, burger.output()[-2000:]
     assert f"map saved: {saved}" in burger.output()
 
 
-def test_a_copied_folder_holds_one_slam_py(user):
+def test_a_copied_folder_holds_one_slam_py(user: Any, readme: SimpleNamespace) -> None:
     """make setup's workspace lies outside the folder: rosrun finds one slam.py in the copy."""
     copy = user.ws / "src" / "assign5"
     assert (copy / ".venv").is_dir(), "the copy was made after make setup and make demo"
@@ -140,20 +139,20 @@ def test_a_copied_folder_holds_one_slam_py(user):
     assert res.returncode != 0 and "bad parameter: particles=0 must be in [1, 10000]" in res.stdout, res.stdout
 
 
-def test_record_replay_and_the_offline_tools(user):
-    rec = user.start(run_line("roslaunch assign5 burger.launch world:=room")
+def test_record_replay_and_the_offline_tools(user: Any, readme: SimpleNamespace) -> None:
+    rec = user.start(run_line(readme, "roslaunch assign5 burger.launch world:=room")
                      + " rviz:=false")
     assert user.probe("route_done", "300", timeout=300).get("done"), rec.output()[-2000:]
     assert rec.interrupt() == 0
-    clean(rec.output(), "burger.launch record:=true")
+    readme.clean(rec.output(), "burger.launch record:=true")
     (bag,) = sorted((user.home / ".ros").glob("assign5_*.bag"))
     date = re.fullmatch(r"assign5_(.+)\.bag", bag.name).group(1)
 
     # replay.launch with the bag relative to the current folder: ends by itself, map beside it
     user.new_master()
-    replay = user.start(run_line("cd ~/.ros && roslaunch assign5 replay.launch").replace("DATE", date))
+    replay = user.start(run_line(readme, "cd ~/.ros && roslaunch assign5 replay.launch").replace("DATE", date))
     assert replay.wait(600) == 0, replay.output()[-3000:]
-    clean(replay.output(), "roslaunch assign5 replay.launch")
+    readme.clean(replay.output(), "roslaunch assign5 replay.launch")
     saved = bag.with_name(f"assign5_{date}_map.yaml")
     assert saved.is_file(), replay.output()[-3000:]
     meta = yaml.safe_load(saved.read_text())
@@ -161,34 +160,36 @@ def test_record_replay_and_the_offline_tools(user):
 
     # by hand: slam.launch on sim time, rosbag play --clock (stopped once a map is out)
     user.new_master()
-    slam = user.start(run_line("roslaunch assign5 slam.launch use_sim_time:=true"))
+    slam = user.start(run_line(readme, "roslaunch assign5 slam.launch use_sim_time:=true"))
     user.probe("param", "/slam/particles")           # the node's launch is up
-    play = user.start(run_line("rosbag play --clock ~/.ros/assign5_DATE.bag").replace("DATE", date))
+    play = user.start(run_line(readme, "rosbag play --clock ~/.ros/assign5_DATE.bag").replace("DATE", date))
     grid = user.probe("message", "/map", "nav_msgs/OccupancyGrid", "60")
     assert grid.get("known", 0) > 1000, (grid, slam.output()[-2000:])
     play.interrupt()
     assert slam.interrupt() == 0
-    clean(slam.output(), "roslaunch assign5 slam.launch use_sim_time:=true")
+    readme.clean(slam.output(), "roslaunch assign5 slam.launch use_sim_time:=true")
 
     # offline, from the repository with make setup's .venv
     clone = user.clone
-    res = user.run(run_line("PYTHONPATH=src .venv/bin/python -m fastslam.offline ~/.ros/")
+    res = user.run(run_line(readme, "PYTHONPATH=src .venv/bin/python -m fastslam.offline ~/.ros/")
                    .replace("DATE", date), cwd=clone, ros=False, timeout=600)
     assert res.returncode == 0, res.stdout[-2000:]
     traj = (clone / "results" / "run1" / "trajectory.txt").read_text().splitlines()
     assert len([t for t in traj if not t.startswith("#")]) > 300   # the lap has ~380 scans
-    for start, made in (("PYTHONPATH=src .venv/bin/python -m fastslam.carmen", "intel.bag.gt.txt"),
-                        ("PYTHONPATH=src .venv/bin/python -m fastslam.offline intel.bag", "results/intel/map.yaml")):
-        res = user.run(run_line(start), cwd=clone, ros=False, timeout=900)
+    for line, made in ((run_line(readme, "PYTHONPATH=src .venv/bin/python -m fastslam.carmen_to_bag"),
+                        "intel.bag.gt.txt"),
+                       (run_line(readme, "PYTHONPATH=src .venv/bin/python -m fastslam.offline intel.bag"),
+                        "results/intel/map.yaml")):
+        res = user.run(line, cwd=clone, ros=False, timeout=900)
         assert res.returncode == 0, res.stdout[-2000:]
         assert (clone / made).is_file()
-    evaluated = user.run(run_line("PYTHONPATH=src .venv/bin/python -m fastslam.evaluate"), cwd=clone, ros=False)
+    evaluated = user.run(run_line(readme, "PYTHONPATH=src .venv/bin/python -m fastslam.evaluate"), cwd=clone, ros=False)
     assert evaluated.returncode == 0 and "ATE rmse [m]" in evaluated.stdout, evaluated.stdout
 
     # the same tools from the catkin workspace
-    res = user.run(run_line("rosrun assign5 evaluate.py"), cwd=clone)
+    res = user.run(run_line(readme, "rosrun assign5 evaluate.py"), cwd=clone)
     assert res.returncode == 0 and res.stdout == evaluated.stdout, res.stdout
-    res = user.run(run_line("rosrun assign5 offline.py").replace("DATE", date), cwd=clone, timeout=600)
+    res = user.run(run_line(readme, "rosrun assign5 offline.py").replace("DATE", date), cwd=clone, timeout=600)
     has_rosbags = user.run("/usr/bin/python3 -c 'import rosbags'", ros=False).returncode == 0
     if has_rosbags:
         assert res.returncode == 0 and (clone / "results" / "run2" / "map.yaml").is_file(), res.stdout
@@ -199,10 +200,24 @@ def test_record_replay_and_the_offline_tools(user):
         assert not (clone / "results" / "run2").exists()
 
 
+def test_the_relations_metric(machine: Any, readme: SimpleNamespace) -> None:
+    clone = machine.clone
+    line = run_line(readme, "PYTHONPATH=src .venv/bin/python -m fastslam.offline ../shared/data/mit-csail.bag")
+    res = machine.run(line, cwd=clone, ros=False, timeout=900)
+    assert res.returncode == 0, res.stdout[-2000:]
+    res = machine.run(run_line(readme, "PYTHONPATH=src .venv/bin/python -m fastslam.evaluate --relations"),
+                      cwd=clone, ros=False)
+    assert res.returncode == 0, res.stdout
+    relations = re.search(r"relations\s+(\d+)", res.stdout)
+    translation = re.search(r"translation \[m\]\s+([\d.]+)", res.stdout)
+    assert relations and int(relations.group(1)) > 1000, res.stdout
+    assert translation and float(translation.group(1)) < 0.2, res.stdout
+
+
 # -- paths beside the README's examples ----------------------------------------------
 
 
-def test_config_takes_a_preset_name_or_a_path(user):
+def test_config_takes_a_preset_name_or_a_path(user: Any, readme: SimpleNamespace) -> None:
     core = user.start(f"roscore -p {user.port}")
     user.probe("param", "/run_id")   # the master is up
     (user.home / "mine.yaml").write_text("particles: 7\nproposal: scan_match\n")
@@ -217,11 +232,11 @@ def test_config_takes_a_preset_name_or_a_path(user):
         value = SlamConfig().to_dict()[key] if value is None else value
         assert value == expected, (arg, value)
         assert slam.interrupt() == 0
-        clean(slam.output(), f"slam.launch config:={arg}")
+        readme.clean(slam.output(), f"slam.launch config:={arg}")
     core.interrupt()
 
 
-def test_slam_launch_after_sim_launch_keeps_sim_time(user):
+def test_slam_launch_after_sim_launch_keeps_sim_time(user: Any, readme: SimpleNamespace) -> None:
     sim = user.start("roslaunch assign5 sim.launch")
     user.probe("message", "/clock", "rosgraph_msgs/Clock", "60")
     slam = user.start("roslaunch assign5 slam.launch", ROS_HOME=str(user.home / "roshome"))
@@ -235,11 +250,11 @@ def test_slam_launch_after_sim_launch_keeps_sim_time(user):
     assert saved == {"success": True, "message": str(user.home / "roshome" / "assign5_map.yaml")}, saved
     assert slam.interrupt() == 0 and sim.interrupt() == 0
     for run in (sim, slam):
-        clean(run.output(), run.what)
+        readme.clean(run.output(), run.what)
     assert "/clock" not in slam.output() and "no scan" not in slam.output()
 
 
-def test_the_node_names_a_wrong_time_source_and_a_silent_scan_topic(user):
+def test_the_node_names_a_wrong_time_source_and_a_silent_scan_topic(user: Any, readme: SimpleNamespace) -> None:
     sim = user.start("roslaunch assign5 sim.launch")
     user.probe("message", "/clock", "rosgraph_msgs/Clock", "60")
     quiet = user.start("roslaunch assign5 slam.launch scan:=/laser")
@@ -253,7 +268,7 @@ def test_the_node_names_a_wrong_time_source_and_a_silent_scan_topic(user):
     assert wall.interrupt() == 0 and sim.interrupt() == 0
 
 
-def test_slam_gmapping_parameter_files_work_with_a_notice_and_entropy(user):
+def test_slam_gmapping_parameter_files_work_with_a_notice_and_entropy(user: Any, readme: SimpleNamespace) -> None:
     (user.home / "gmapping.yaml").write_text(
         "map_update_interval: 2.0\nmaxUrange: 3.0\nsigma: 0.05\nkernelSize: 1\nlstep: 0.05\nastep: 0.05\n"
         "iterations: 5\nlsigma: 0.075\nogain: 3.0\nlskip: 0\nminimumScore: 50\nsrr: 0.1\nsrt: 0.2\nstr: 0.1\n"
@@ -269,4 +284,4 @@ def test_slam_gmapping_parameter_files_work_with_a_notice_and_entropy(user):
     assert "ogain=3.0 (slam_gmapping's) has no counterpart here and is ignored" in out
     assert user.probe("message", "/map", "nav_msgs/OccupancyGrid", "30")["width"] == 400   # 20 m at 0.05 m
     assert slam.interrupt() == 0 and sim.interrupt() == 0
-    clean(slam.output(), slam.what)
+    readme.clean(slam.output(), slam.what)

@@ -5,7 +5,8 @@ from fastslam.sim.lidar import Lidar, cast_rays, ray_circles, ray_segments
 from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR, RADIUS, DiffDrive, OdometryModel, clamp_cmd, integrate
 from fastslam.sim.route import RouteFollower, load_route, parse_route
 from fastslam.sim.sim import SimConfig, Simulation, Tick
-from fastslam.sim.world import World, WorldError, load_world, regular_polygon, world_from_dict
+from fastslam.sim.world import World, WorldError, regular_polygon, world_from_dict
+from fastslam.sim.world_loader import load_world
 
 __all__ = ["Lidar", "cast_rays", "ray_circles", "ray_segments", "MAX_ANGULAR", "MAX_LINEAR", "RADIUS",
            "DiffDrive", "OdometryModel", "clamp_cmd", "integrate", "RouteFollower", "load_route",

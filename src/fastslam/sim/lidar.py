@@ -1,7 +1,7 @@
 """Exact, vectorised 2D ray casting against segments and circles (an LDS-01-like laser).
 
 Every beam is intersected analytically with every primitive at once ((M, K) arrays), so
-the simulated ranges do not share the grid approximations of ``fastslam.raycast``.
+the simulated ranges do not share the grid approximations of ``fastslam.filter.raycast``.
 """
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fastslam.geometry import compose
 from fastslam.sim.world import World
 
 Array = NDArray[np.float64]
@@ -38,7 +39,8 @@ def ray_segments(origin: ArrayLike, dirs: ArrayLike, segments: ArrayLike) -> Arr
 
 
 def ray_circles(origin: ArrayLike, dirs: ArrayLike, circles: ArrayLike) -> Array:
-    """Distance (M,) along unit directions dirs (M, 2) from origin (2,) to the first circle boundary (C, 3); inf if none.
+    """Distance (M,) along unit directions dirs (M, 2) from origin (2,) to the first circle
+    boundary (C, 3); inf if none.
 
     |f + t*d|^2 = r^2 with f = origin - centre: t = -b -+ sqrt(b^2 - c), b = d.f, c = |f|^2 - r^2.
     From inside a circle the far root is the hit.
@@ -92,10 +94,10 @@ class Lidar:
 
     def sensor_pose(self, base_pose: ArrayLike) -> Array:
         """World pose (3,) of the sensor for a robot base pose (3,)."""
-        x, y, th = np.asarray(base_pose, dtype=float)
-        mx, my, myaw = self.mount
-        c, s = math.cos(th), math.sin(th)
-        return np.array([x + c * mx - s * my, y + s * mx + c * my, th + myaw])
+        base = np.asarray(base_pose, dtype=float)
+        sensor = compose(base, self.mount)
+        sensor[2] = base[2] + self.mount[2]  # unwrapped, as the beams' angles are
+        return sensor
 
     def cast(self, pose: ArrayLike, angles: ArrayLike, range_min: float, range_max: float,
              rng: np.random.Generator | None = None, sigma: float = 0.0) -> Array:

@@ -21,7 +21,8 @@ MAX_ANGULAR = 2.84   # [rad/s]
 RADIUS = 0.105       # [m] footprint radius used for collisions
 
 
-def clamp_cmd(v: float, w: float, max_linear: float = MAX_LINEAR, max_angular: float = MAX_ANGULAR) -> tuple[float, float]:
+def clamp_cmd(v: float, w: float, max_linear: float = MAX_LINEAR,
+              max_angular: float = MAX_ANGULAR) -> tuple[float, float]:
     """(v, w) limited to |v| <= max_linear, |w| <= max_angular; NaN/inf become 0."""
     v = float(v) if math.isfinite(v) else 0.0
     w = float(w) if math.isfinite(w) else 0.0

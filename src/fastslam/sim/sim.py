@@ -18,12 +18,11 @@ from numpy.typing import NDArray
 
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
+from fastslam.geometry import relative
 from fastslam.sim.lidar import Lidar
 from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR, DiffDrive, OdometryModel
 from fastslam.sim.route import RouteFollower
 from fastslam.sim.world import World
-
-
 
 
 @dataclass(frozen=True)
@@ -33,7 +32,7 @@ class SimConfig:
     world: str = field(default="turtlebot3_world", metadata={"doc": "world name in worlds/ or a path"})
     route: str = field(default="", metadata={"doc": "waypoint file or inline YAML; empty = drive by cmd_vel"})
     worlds_dir: str = field(default="", metadata={"doc": "where world names are looked up; empty = the package's"})
-    spawn: list = field(default_factory=list, metadata={"doc": "[x, y, yaw_deg]; empty = the world's"})
+    spawn: list[float] = field(default_factory=list, metadata={"doc": "[x, y, yaw_deg]; empty = the world's"})
     seed: int = _num(0, 0, 2**32 - 1, "RNG seed for laser and odometry noise")
     speed: float = _num(1.0, 0.01, 1000.0, "sim time per wall time (only with use_sim_time)")
     physics_rate: float = _num(60.0, 1.0, 2000.0, "physics ticks per second of sim time [Hz]")
@@ -47,7 +46,8 @@ class SimConfig:
     range_min: float = _num(0.12, 0.0, 100.0, "[m]")
     range_max: float = _num(3.5, 0.01, 1000.0, "[m]")
     range_noise: float = _num(0.01, 0.0, 1.0, "Gaussian range noise sigma [m]")
-    no_return: str = field(default="inf", metadata={"choices": ("inf", "zero"), "doc": "inf as Gazebo, zero as the LDS-01 driver"})
+    no_return: str = field(default="inf", metadata={"choices": ("inf", "zero"),
+                                                    "doc": "inf as Gazebo, zero as the LDS-01 driver"})
     laser_x: float = _num(-0.032, -10.0, 10.0, "base_link -> base_scan x [m]")
     laser_y: float = _num(0.0, -10.0, 10.0, "base_link -> base_scan y [m]")
     laser_z: float = _num(0.172, -10.0, 10.0, "base_link -> base_scan z [m]")
@@ -146,10 +146,8 @@ class Simulation:
             before = self.odom.pose.copy()
             after = self.odom.update(self.robot.pose)
             period = 1.0 / self.cfg.odom_rate
-            dth = (after[2] - before[2] + math.pi) % (2 * math.pi) - math.pi
-            c, s = math.cos(before[2]), math.sin(before[2])
-            dx = c * (after[0] - before[0]) + s * (after[1] - before[1])
-            self.odom_twist = (dx / period, dth / period)
+            dx, _, dth = relative(before, after)   # the step in the robot's frame
+            self.odom_twist = (float(dx) / period, float(dth) / period)
         if self._due(self.cfg.scan_rate):
             tick.scan = self.lidar.scan(self.robot.pose, self.rng if self.cfg.range_noise > 0 else None)
         return tick

@@ -18,11 +18,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
@@ -217,22 +215,3 @@ def world_from_dict(data: Any, name: str = "world") -> World:
     if world.clearance(xy)[0] < 1e-3 or inside_solid:
         raise WorldError(f"spawn: {spawn!r} lies on or inside an obstacle")
     return world
-
-
-def load_world(path: str | Path) -> World:
-    """Reads a world YAML, or a map_server map YAML (it has an ``image`` key)."""
-    path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as err:
-        raise WorldError(f"cannot read world file {path}: {err.strerror}") from None
-    except yaml.YAMLError as err:
-        raise WorldError(f"{path}: not valid YAML: {err}") from None
-    if isinstance(data, dict) and "image" in data:
-        from fastslam.sim.pgm import world_from_map_yaml
-
-        return world_from_map_yaml(data, path)
-    try:
-        return world_from_dict(data, name=path.stem)
-    except WorldError as err:
-        raise WorldError(f"{path.name}: {err}") from None

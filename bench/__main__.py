@@ -1,0 +1,37 @@
+"""`make bench [SUITE...]`: speed, memory and accuracy figures (recorded in docs/benchmarks.md).
+
+    PYTHONPATH=src:. python -m bench [speed] [intel] [office] [matcher] [longrun] [accuracy]   (default: all)
+
+speed: one filter step for N in {20, 50, 100}, 60 and 360 beams, 10 m and 40 m maps.
+intel, office: accuracy of the improved mode against the assignment (bench.modes).
+accuracy: config/real.yaml over the whole development set through the offline tool.
+matcher: the scan matcher alone against reference poses.
+longrun: 30 simulated minutes of the office loop, time and memory sampled.
+Each suite is a module of this folder, also runnable alone (`python -m bench.speed`).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+SUITES = {"speed": ("bench.speed", []), "intel": ("bench.modes", []),
+          "office": ("bench.modes", ["--office"]), "matcher": ("bench.matcher", None),
+          "longrun": ("bench.longrun", []), "accuracy": ("bench.accuracy", [])}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="make bench", description=__doc__.splitlines()[0])
+    parser.add_argument("suites", nargs="*", default=list(SUITES), choices=list(SUITES), metavar="SUITE",
+                        help=f"{', '.join(SUITES)} (default: all)")
+    for suite in parser.parse_args(argv).suites:
+        print(f"== {suite}", flush=True)
+        module, args = SUITES[suite]
+        run = importlib.import_module(module).main
+        for suite_args in ([["intel"], ["office"]] if args is None else [args]):
+            run(suite_args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,177 @@
+"""Accuracy over the whole development set, through the offline tool (`make bench accuracy`).
+
+    PYTHONPATH=src:. python -m bench.accuracy [--config config/real.yaml] [--set key=value]... [--seeds 0 1 2]
+                             [--logs csail aces intel ...] [--json FILE]
+
+Every case runs `python -m fastslam.offline BAG --out DIR --config ... --seed S`, the
+command a user runs, in its own process, one at a time:
+
+- the real robots with their own odometry at their full scan rate (`mit-csail.bag`,
+  `aces.bag`), scored with their ground-truth relations (Kuemmerle et al. 2009) on the
+  pose at every scan (`trajectory_scans.txt`); also on the live `map -> odom` poses;
+- each corrected CARMEN log turned into a bag with simulated odometry noise
+  (`python -m fastslam.carmen_to_bag LOG --out BAG --odom-noise 1 --seed S`), scored by the
+  ATE of `trajectory_scans.txt` against the log's poses.
+
+Per log: the error of each seed, their median and the worst, the worst single relation
+error (relations), wall seconds of the whole command and its peak memory (the largest
+over the seeds); then one summary line against the targets of issue 16.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bench.common import ROOT, data_path
+from fastslam.eval.trajectory import ate, match_by_time, relations_score
+from fastslam.io.trajectory_files import read_relations, read_trajectory
+
+REAL = {"csail": "mit-csail", "aces": "aces"}          # bag + relations
+CORRECTED = ("intel", "seattle", "orebro", "freiburg-101", "belgioioso", "edmonton", "acapulco")
+# issue 16's targets
+TARGET_REL = {"csail": 0.032, "aces": 0.045}           # relations mean [m]
+TARGET_REL_MAX = 0.5                                   # any single relation [m]
+TARGET_WALL = {"csail": 10.0, "aces": 15.0}            # [s]
+TARGET_ATE_MEDIAN, TARGET_ATE_WORST = 0.15, 0.5        # [m]
+CACHE = ROOT / "out" / "bench-accuracy"                # converted bags, reused between runs
+
+
+def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) -> dict:
+    """The offline tool on bag in its own process; its stats plus the command's wall time."""
+    cmd = [sys.executable, "-m", "fastslam.offline", str(bag), "--out", str(out), "--config", str(config),
+           "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)]
+    start = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip().splitlines()[-1:]}")
+    stats = json.loads((out / "stats.json").read_text())
+    warnings = [ln for ln in done.stderr.splitlines() if ln.startswith("warning")]
+    return {"wall_s": wall, "peak_mb": stats["peak_memory_mb"], "updates": stats["updates"],
+            "scans": stats["scans"], "warnings": len(warnings)}
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
+
+
+def converted(log: str, seed: int, level: float = 1.0) -> Path:
+    """The corrected log as a bag with odometry noise (level, seed), converted once."""
+    bag = CACHE / f"{log}-noise{level:g}-seed{seed}.bag"
+    gt = bag.with_name(bag.name + ".gt.txt")
+    if not (bag.exists() and gt.exists()):
+        CACHE.mkdir(parents=True, exist_ok=True)
+        bag.unlink(missing_ok=True)
+        cmd = [sys.executable, "-m", "fastslam.carmen_to_bag", str(data_path(f"{log}-corrected.log.gz")),
+               "--out", str(bag),
+               "--odom-noise", f"{level:g}", "--seed", str(seed)]
+        done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip()}")
+    return bag
+
+
+def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path) -> dict:
+    stem = REAL[name]
+    out = work / f"{name}-{seed}"
+    row = run_offline(data_path(f"{stem}.bag"), out, config, seed, sets)
+    rel = read_relations(data_path(f"{stem}.relations"))
+    t, p = read_trajectory(out / "trajectory_scans.txt")
+    s = relations_score(t, p, rel)
+    lt, lp = read_trajectory(out / "live_poses.txt")
+    live = relations_score(lt, lp, rel)
+    return {"log": name, "seed": seed, "error": s.trans_mean, "rel_max": s.trans_max, "rot_deg": s.rot_mean,
+            "live": live.trans_mean, "live_max": live.trans_max, **row}
+
+
+def corrected_case(name: str, seed: int, config: Path, sets: list[str], work: Path) -> dict:
+    bag = converted(name, seed)
+    out = work / f"{name}-{seed}"
+    row = run_offline(bag, out, config, seed, sets)
+    ref_t, ref = read_trajectory(bag.with_name(bag.name + ".gt.txt"))
+    t, p = read_trajectory(out / "trajectory_scans.txt")
+    _, r, e = match_by_time(ref_t, ref, t, p, max_dt=1e-4)
+    lt, lp = read_trajectory(out / "live_poses.txt")
+    _, lr, le = match_by_time(ref_t, ref, lt, lp, max_dt=1e-4)
+    return {"log": name, "seed": seed, "error": ate(r, e), "matched": len(r), "live": ate(lr, le), **row}
+
+
+def print_log(rows: list[dict], relations: bool) -> None:
+    err = [r["error"] for r in rows]
+    seeds = " ".join(f"{v:6.3f}" for v in err)
+    extra = f"{max(r['rel_max'] for r in rows):8.3f}" if relations else f"{'':8}"
+    live = np.median([r["live"] for r in rows])
+    print(f"{rows[0]['log']:<13} {'rel' if relations else 'ATE':<4} {seeds:<21} {np.median(err):7.3f} "
+          f"{max(err):7.3f} {extra} {live:7.3f} {max(r['wall_s'] for r in rows):7.1f} "
+          f"{max(r['peak_mb'] for r in rows):7.0f} {rows[0]['updates']:>5}/{rows[0]['scans']:<5}", flush=True)
+
+
+def summary(rows: list[dict]) -> str:
+    """One line, worst case first: each target's figure and whether it is met."""
+    def by(log: str) -> list[dict]:
+        return [r for r in rows if r["log"] == log]
+
+    parts, met, total = [], 0, 0
+    checks = []
+    for name in REAL:
+        rs = by(name)
+        if rs:
+            checks.append((f"{name} rel mean worst", max(r["error"] for r in rs), TARGET_REL[name]))
+            checks.append((f"{name} rel max", max(r["rel_max"] for r in rs), TARGET_REL_MAX))
+            checks.append((f"{name} wall", max(r["wall_s"] for r in rs), TARGET_WALL[name]))
+    logs = [n for n in CORRECTED if by(n)]
+    if logs:
+        worst_median = max(logs, key=lambda n: np.median([r["error"] for r in by(n)]))
+        checks.append((f"ATE median worst ({worst_median})",
+                       float(np.median([r["error"] for r in by(worst_median)])), TARGET_ATE_MEDIAN))
+        worst = max((r for r in rows if r["log"] in logs), key=lambda r: r["error"])
+        checks.append((f"ATE run worst ({worst['log']} seed {worst['seed']})", worst["error"], TARGET_ATE_WORST))
+    checks.sort(key=lambda c: -c[1] / c[2])  # worst ratio to its target first
+    for label, value, target in checks:
+        total += 1
+        ok = value <= target
+        met += ok
+        parts.append(f"{label} {value:.3f} ({'ok' if ok else 'over'} {target:g})")
+    return f"summary: {met}/{total} targets met; " + "; ".join(parts)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--config", default=str(ROOT / "config" / "real.yaml"))
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="passed to the offline tool")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--logs", nargs="+", default=list(REAL) + list(CORRECTED), choices=list(REAL) + list(CORRECTED))
+    ap.add_argument("--json", metavar="FILE", help="also write every row here")
+    args = ap.parse_args(argv)
+    config = Path(args.config).resolve()
+    shown = config.relative_to(ROOT) if ROOT in config.parents else config  # no is_relative_to on 3.8
+    print(f"accuracy: {shown}"
+          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {data_path('aces.bag').parent}")
+    print("rel: relations mean [m] of the pose at every scan (max: worst single relation); ATE [m] after "
+          "alignment; live: the same for map->odom's poses (median); wall s and peak MB: whole command, "
+          "largest over the seeds")
+    print(f"{'log':<13} {'':<4} {'seeds':<21} {'median':>7} {'worst':>7} {'max rel':>8} {'live':>7} "
+          f"{'wall s':>7} {'peak MB':>7} {'updates/scans'}")
+    rows: list[dict] = []
+    with tempfile.TemporaryDirectory(prefix="bench-accuracy-") as tmp:
+        for name in args.logs:
+            case = real_case if name in REAL else corrected_case
+            log_rows = [case(name, seed, config, args.set, Path(tmp)) for seed in args.seeds]
+            rows += log_rows
+            print_log(log_rows, name in REAL)
+    print(summary(rows))
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

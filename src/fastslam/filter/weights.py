@@ -1,0 +1,108 @@
+"""Particle weights: the assignment's 1/(||d - z|| + 1) and a likelihood beam model,
+both as log-weights so that weights can carry over between updates without underflow."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.scan import Beams, end_points
+from fastslam.geometry import transform_points
+
+
+def assignment_log_weights(expected: NDArray[np.float64], measured: NDArray[np.float64],
+                           valid: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """log of 1/(||d - z|| + 1) per particle over the valid beams only.
+
+    Args:
+        expected: (N, M) expected ranges d from each particle's map [m].
+        measured: (M,) measured ranges z [m].
+        valid: (M,) beams that count; the others are left out of both d and z.
+    """
+    diff = np.where(valid, expected - measured, 0.0)
+    return -np.log1p(np.sqrt(np.sum(diff * diff, axis=1)))
+
+
+def likelihood_log_weights(distances: NDArray[np.float64], valid: NDArray[np.bool_],
+                           sigma: float, max_dist: float, gain: float) -> NDArray[np.float64]:
+    """Endpoint model: sum over valid beams of -dist^2 / (2 sigma^2), dist capped.
+
+    Args:
+        distances: (N, M) distance from each beam's end point to the nearest occupied
+            cell of the particle's map [m] (capped: an unexplained beam costs a constant).
+        valid: (M,) beams with a real return.
+        gain: exponent on the whole likelihood (< 1 flattens it, gmapping's smoothing).
+    """
+    d = np.minimum(distances, max_dist)
+    return gain * np.sum(np.where(valid, -0.5 * (d / sigma) ** 2, 0.0), axis=1)
+
+
+def normalise_log(log_w: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Normalised weights from log-weights, subtracting the max before exp.
+
+    Non-finite log-weights get weight 0; if none is finite the weights are uniform.
+    """
+    finite = np.isfinite(log_w)
+    if not finite.any():
+        return np.full(len(log_w), 1.0 / len(log_w))
+    w = np.zeros(len(log_w))
+    w[finite] = np.exp(log_w[finite] - log_w[finite].max())
+    return w / w.sum()
+
+
+def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, *,
+                       max_dist: float = 0.3) -> NDArray[np.float64]:
+    """(N, M) distance from each beam's end point to the nearest occupied cell centre
+    of each particle's map, searched up to max_dist and capped there [m].
+
+    Beams without a return (not beams.hit) have no end point: they get max_dist and
+    are left out of the weight by its valid mask.
+    """
+    n = len(poses)
+    m = len(beams.ranges)
+    out = np.full((n, m), float(max_dist))
+    sel = np.flatnonzero(beams.hit)
+    if len(sel) == 0:
+        return out
+    res = grid.resolution
+    h, w = grid.shape
+    r = max(1, math.ceil(max_dist / res))
+    d = np.arange(-r, r + 1)
+    ox, oy = np.meshgrid(d, d)
+    near = np.hypot(np.abs(ox) - 0.5, np.abs(oy) - 0.5) <= r   # cells that can be within reach
+    ox, oy = ox[near], oy[near]                                 # (O,)
+    x, y = transform_points(poses, end_points(beams, sel))               # (N, S)
+    u = (x - grid.origin[0]) / res
+    v = (y - grid.origin[1]) / res
+    ix = np.floor(u).astype(np.int64)
+    iy = np.floor(v).astype(np.int64)
+    fx = (u - ix - 0.5).astype(np.float32)
+    fy = (v - iy - 0.5).astype(np.float32)
+    if ix.min() - r >= 0 and iy.min() - r >= 0 and ix.max() + r < w and iy.max() + r < h:
+        # Every searched cell is inside (the usual case): no bounds to check.
+        base = (np.arange(n)[:, None] * h + iy) * w + ix        # (N, S)
+        flat = base[..., None] + (oy * w + ox)                  # (N, S, O)
+        occupied = grid.logodds.reshape(-1).take(flat) > 0
+    else:
+        cx = ix[..., None] + ox                                 # (N, S, O)
+        cy = iy[..., None] + oy
+        inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
+        flat = (np.arange(n)[:, None, None] * h + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
+        occupied = (grid.logodds.reshape(-1).take(flat) > 0) & inside
+    # Distances to the occupied cells only (few of them), the least per end point by
+    # a reduction over runs: the same float64 values as over the full (N, S, O) array.
+    found = np.flatnonzero(occupied)
+    point, j = np.divmod(found, len(ox))                        # end point (n * S + s), offset
+    # float64 before the gathers (exact): no mixed int64 - float32 arithmetic after.
+    dx = ox.astype(np.float64).take(j) - fx.astype(np.float64).reshape(-1).take(point)
+    dy = oy.astype(np.float64).take(j) - fy.astype(np.float64).reshape(-1).take(point)
+    d2 = np.square(dx, out=dx) + np.square(dy, out=dy)
+    least = np.full(ix.size, np.inf)
+    if len(found):
+        runs = np.flatnonzero(np.concatenate(([True], point[1:] != point[:-1])))
+        least[point[runs]] = np.minimum.reduceat(d2, runs)
+    nearest = np.sqrt(least.reshape(ix.shape)) * res
+    out[:, sel] = np.minimum(nearest, max_dist)
+    return out

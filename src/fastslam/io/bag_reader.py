@@ -1,0 +1,206 @@
+"""ROS 1 bags without ROS: read scans, odometry and the laser mounting.
+
+Uses ``rosbags`` (pure Python), imported lazily so that the rest of ``fastslam``
+works without it. Times are header stamps in seconds (float); poses are 2D.
+"""
+from __future__ import annotations
+
+import logging
+import os
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fastslam.io.records import ROSBAGS_HINT, BagError, OdomRecord, ScanRecord
+from fastslam.transforms import LaserMount, mount_from_matrix, transform_matrix
+
+__all__ = ["BagData", "BagError", "OdomRecord", "ScanRecord", "laser_mount", "read_bag"]
+
+log = logging.getLogger(__name__)
+
+SCAN_TYPE = "sensor_msgs/msg/LaserScan"
+ODOM_TYPE = "nav_msgs/msg/Odometry"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+
+
+@dataclass
+class BagData:
+    """Everything the offline SLAM needs from a bag, each list sorted by time."""
+
+    scans: list[ScanRecord]
+    odoms: list[OdomRecord]
+    mount: LaserMount
+    scan_topic: str
+    odom_topic: str
+    topics: dict[str, str] = field(default_factory=dict)  # topic -> message type
+    bad_tf: list[tuple[str, str]] = field(default_factory=list)  # (parent, child) seen only with a zero quaternion
+
+    def records(self) -> Iterator[ScanRecord | OdomRecord]:
+        """Scans and odometry merged in time order; odometry first on equal stamps,
+        so a scan always sees the odometry of its own instant."""
+        i = j = 0
+        while i < len(self.scans) or j < len(self.odoms):
+            if j < len(self.odoms) and (i >= len(self.scans) or self.odoms[j].t <= self.scans[i].t):
+                yield self.odoms[j]
+                j += 1
+            else:
+                yield self.scans[i]
+                i += 1
+
+    def odom_poses(self) -> NDArray[np.float64]:
+        """(T, 4) float64 rows (t, x, y, yaw)."""
+        return np.array([[o.t, o.x, o.y, o.yaw] for o in self.odoms], dtype=np.float64).reshape(-1, 4)
+
+
+def _rosbags() -> tuple[Any, Any, Any]:
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError as err:  # pragma: no cover - depends on the installation
+        raise BagError(ROSBAGS_HINT) from err
+    return AnyReader, Stores, get_typestore
+
+
+def _stamp(header: Any) -> float:
+    return float(header.stamp.sec) + 1e-9 * float(header.stamp.nanosec)
+
+
+CONVENTIONAL = {SCAN_TYPE: "/scan", ODOM_TYPE: "/odom"}
+
+
+def _pick(topics: dict[str, str], msgtype: str, wanted: str | None, what: str) -> str:
+    listing = ", ".join(f"{t} [{m}]" for t, m in sorted(topics.items())) or "(none)"
+    if wanted is not None:
+        if topics.get(wanted) != msgtype:
+            raise BagError(f"{what} topic {wanted!r} with type {msgtype} not in the bag; topics: {listing}")
+        return wanted
+    found = [t for t, m in topics.items() if m == msgtype]
+    if not found:
+        raise BagError(f"no {msgtype} topic in the bag; topics: {listing}")
+    if len(found) > 1 and CONVENTIONAL.get(msgtype) in found:
+        # e.g. /odom beside the simulator's /ground_truth: the conventional name wins
+        log.info("%d %s topics; using %s", len(found), msgtype, CONVENTIONAL[msgtype])
+        return CONVENTIONAL[msgtype]
+    if len(found) > 1:
+        raise BagError(f"{len(found)} {msgtype} topics, name the {what} topic to use; topics: {listing}")
+    return found[0]
+
+
+def read_bag(path: str | os.PathLike[str], scan_topic: str | None = None,
+             odom_topic: str | None = None) -> BagData:
+    """Read scans, odometry and the laser mounting from a ROS 1 bag.
+
+    Args:
+        path: the ``.bag`` file.
+        scan_topic, odom_topic: None = the only LaserScan / Odometry topic in the bag.
+
+    Raises:
+        BagError: unreadable bag, or the topics are missing or ambiguous (the message
+            lists every topic and its type).
+    """
+    AnyReader, Stores, get_typestore = _rosbags()
+    from rosbags.highlevel import AnyReaderError
+
+    path = Path(path)
+    if not path.is_file():
+        raise BagError(f"no bag at {path}")
+    scans: list[ScanRecord] = []
+    odoms: list[OdomRecord] = []
+    static_edges: dict[tuple[str, str], NDArray[np.float64]] = {}
+    dynamic_edges: dict[tuple[str, str], NDArray[np.float64]] = {}
+    bad_tf: set[tuple[str, str]] = set()
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS1_NOETIC)) as reader:
+            topics = {c.topic: c.msgtype for c in reader.connections}
+            scan_topic = _pick(topics, SCAN_TYPE, scan_topic, "scan")
+            odom_topic = _pick(topics, ODOM_TYPE, odom_topic, "odometry")
+            wanted = {scan_topic, odom_topic, "/tf", "/tf_static"}
+            conns = [c for c in reader.connections if c.topic in wanted]
+            for conn, _, raw in reader.messages(connections=conns):
+                msg = reader.deserialize(raw, conn.msgtype)
+                if conn.topic == scan_topic:
+                    scans.append(_scan_record(msg))
+                elif conn.topic == odom_topic:
+                    odoms.append(_odom_record(msg))
+                elif conn.msgtype == TF_TYPE:
+                    edges = static_edges if conn.topic == "/tf_static" else dynamic_edges
+                    for tf in msg.transforms:
+                        key = (tf.header.frame_id, tf.child_frame_id)
+                        if key in edges:
+                            continue
+                        try:
+                            edges[key] = _tf_matrix(tf.transform)
+                        except ValueError:  # a zero quaternion: the edge is unusable, not the bag
+                            bad_tf.add(key)
+    except AnyReaderError as err:
+        raise BagError(f"cannot read bag {path}: {err}") from err
+    except BagError:
+        raise
+    except Exception as err:  # rosbags on what is not a ROS 1 bag (random bytes, MCAP, ROS 2)
+        raise BagError(f"{path} is not a readable ROS 1 bag ({type(err).__name__}: {err}); "
+                       "ROS 2 and MCAP bags are not supported") from None
+    scans.sort(key=lambda s: s.t)
+    odoms.sort(key=lambda o: o.t)
+    base = odoms[0].child_frame_id if odoms else "base_link"
+    laser = scans[0].frame_id if scans else "laser"
+    odom_frame = odoms[0].frame_id if odoms else "odom"
+    # the odometry edge itself is dynamic and must not be part of the mounting chain
+    edges = {k: v for k, v in dynamic_edges.items() if k[1] != base and k != (odom_frame, base)}
+    edges.update(static_edges)
+    return BagData(scans=scans, odoms=odoms, mount=laser_mount(edges, base, laser),
+                   scan_topic=scan_topic, odom_topic=odom_topic, topics=topics,
+                   bad_tf=sorted(bad_tf - set(edges)))
+
+
+def _scan_record(msg: Any) -> ScanRecord:
+    return ScanRecord(t=_stamp(msg.header), ranges=np.asarray(msg.ranges, dtype=np.float32).copy(),
+                      angle_min=float(msg.angle_min), angle_increment=float(msg.angle_increment),
+                      range_min=float(msg.range_min), range_max=float(msg.range_max),
+                      frame_id=msg.header.frame_id)
+
+
+def _odom_record(msg: Any) -> OdomRecord:
+    from fastslam.geometry import yaw_from_quaternion
+
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    return OdomRecord(t=_stamp(msg.header), x=float(p.x), y=float(p.y),
+                      yaw=yaw_from_quaternion(q.x, q.y, q.z, q.w),
+                      child_frame_id=msg.child_frame_id, frame_id=msg.header.frame_id)
+
+
+def _tf_matrix(transform: Any) -> NDArray[np.float64]:
+    t, q = transform.translation, transform.rotation
+    return transform_matrix((t.x, t.y, t.z), (q.x, q.y, q.z, q.w))
+
+
+def laser_mount(edges: dict[tuple[str, str], NDArray[np.float64]], base_frame: str,
+                laser_frame: str) -> LaserMount:
+    """Pose of ``laser_frame`` in ``base_frame`` from (parent, child) -> 4x4 transforms.
+
+    The chain may go up and down the tree (edges are used in either direction). With
+    no chain, the laser is assumed at the base origin (``found=False``, logged).
+    """
+    if base_frame == laser_frame:
+        return mount_from_matrix(np.eye(4), base_frame, laser_frame, found=True)
+    neighbours: dict[str, list[tuple[str, NDArray[np.float64]]]] = {}
+    for (parent, child), m in edges.items():
+        neighbours.setdefault(parent, []).append((child, m))
+        neighbours.setdefault(child, []).append((parent, np.linalg.inv(m)))
+    # breadth-first from the base, carrying the base->frame transform
+    seen = {base_frame: np.eye(4)}
+    queue = deque([base_frame])
+    while queue:
+        frame = queue.popleft()
+        for nxt, m in neighbours.get(frame, []):
+            if nxt not in seen:
+                seen[nxt] = seen[frame] @ m
+                queue.append(nxt)
+    if laser_frame not in seen:
+        log.warning("no transform chain %s -> %s in the bag; assuming the laser at the base origin",
+                    base_frame, laser_frame)
+        return mount_from_matrix(np.eye(4), base_frame, laser_frame, found=False)
+    return mount_from_matrix(seen[laser_frame], base_frame, laser_frame, found=True)

@@ -1,0 +1,171 @@
+"""The matcher's last stage, finer than a cell: hill climbing on the interpolated
+evidence (gmapping's optimiser), or Gauss-Newton steps pulling each end point onto the
+occupied cells along the scan's surface normals (ICP), with the odometry prior."""
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.scan import Beams
+from fastslam.geometry import cos_sin, solve3, transform_points, wrap_angle
+
+FINE_ITERATIONS = 6    # hill-climbing steps (a step halves when no neighbour improves)
+ICP_ITERATIONS = 3
+ICP_RADIUS = 2         # cells searched around each end point for occupied ones
+ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
+ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
+NORMAL_GAP = 0.3       # [m] neighbouring returns farther apart give no surface normal
+
+
+def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
+                     cand: NDArray[np.float64], local: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N, C) sum over end points of the bilinearly interpolated evidence max(l, 0)
+    of the maps (N, H, W), in grid units.
+
+    Unlike the searches on whole cells (occupied or not), the log-odds magnitude
+    counts here: within a wall a few cells thick its most often hit cells, the
+    surface, pull the end points (median Intel ATE 0.21 -> 0.18 m).
+    """
+    n, h, w = logodds.shape
+    x, y = transform_points(cand, local)                                            # (N, C, M)
+    u = (x - origin[0]) / cell - 0.5
+    v = (y - origin[1]) / cell - 0.5
+    i0 = np.minimum(np.maximum(np.floor(u), 0), w - 2)
+    j0 = np.minimum(np.maximum(np.floor(v), 0), h - 2)
+    fu = np.minimum(np.maximum(u - i0, 0.0), 1.0)
+    fv = np.minimum(np.maximum(v - j0, 0.0), 1.0)
+    flat = (np.arange(n)[:, None, None] * h + j0.astype(np.intp)) * w + i0.astype(np.intp)
+    f = logodds.reshape(-1)
+
+    def ev(offset: int) -> NDArray[np.float32]:
+        # f[offset:] instead of flat + offset: no index array per corner.
+        return np.maximum(f[offset:].take(flat), 0).astype(np.float32)
+
+    a, b = ev(0), ev(1)
+    c, d = ev(w), ev(w + 1)
+    val = (a * (1 - fu) + b * fu) * (1 - fv) + (c * (1 - fu) + d * fu) * fv
+    return val.sum(axis=2)
+
+
+def hill_climb(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64],
+                dth: float) -> NDArray[np.float64]:
+    """3. hill climbing on the interpolated evidence, steps halving when stuck."""
+    n = len(pose)
+    res = grid.resolution
+    best = _bilinear_scores(grid.logodds, grid.origin, res, pose[:, None, :], local)[:, 0]
+    step = np.tile([res / 2, res / 2, dth / 8], (n, 1))
+    moves = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    for _ in range(FINE_ITERATIONS):
+        cand = pose[:, None, :] + moves[None] * step[:, None, :]
+        sc = _bilinear_scores(grid.logodds, grid.origin, res, cand, local)
+        j = sc.argmax(axis=1)
+        top = sc[np.arange(n), j]
+        up = top > best
+        pose[up] = cand[up, j[up]]
+        best = np.where(up, top, best)
+        step[~up] *= 0.5
+    return pose
+
+
+def surface_normals(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
+    """(M, 2) unit normals (robot frame) of the surface at the selected end points, from
+    the returns on either side in the whole scan; zeros where those are missing or
+    farther apart than NORMAL_GAP (a corner, an edge, a lone return)."""
+    hit = beams.hit
+    r = np.where(hit, beams.ranges, np.nan)
+    pts = np.stack([beams.mount[0] + r * np.cos(beams.angles), beams.mount[1] + r * np.sin(beams.angles)], 1)
+    prev = pts[np.maximum(sel - 1, 0)]
+    nxt = pts[np.minimum(sel + 1, len(r) - 1)]
+    tangent = nxt - prev
+    length = np.hypot(tangent[:, 0], tangent[:, 1])
+    ok = (sel > 0) & (sel < len(r) - 1) & (length > 0) & (length < NORMAL_GAP)
+    ok &= np.isfinite(length)
+    out = np.zeros((len(sel), 2))
+    out[ok] = np.stack([-tangent[ok, 1], tangent[ok, 0]], 1) / length[ok, None]
+    return out
+
+
+def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
+         centre: NDArray[np.float64], spread: NDArray[np.float64]
+         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """3. Gauss-Newton steps on the distances from the end points to the centres of their
+    nearest occupied cells (a weighted mean of them), measured along the surface normal where the scan gives one
+    (normals (M, 2), robot frame; zero: the whole distance), plus the Gaussian prior
+    (centre (N, 3), spread (3,) along, across, heading).
+
+    Unlike the evidence, a cell centre does not care how often the cell was hit, and
+    the prior keeps directions the scan cannot tell where odometry put them: along a
+    corridor the hill climb drifted backwards by ~1 % of the distance (the cells seen
+    longest are behind the robot). Along the surface the distance is left out, or cell
+    centres would pull the end points along walls.
+    """
+    n = len(pose)
+    res = grid.resolution
+    h, w = grid.shape
+    d = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
+    ox, oy = (v.reshape(-1) for v in np.meshgrid(d, d))
+    shift = (oy * w + ox).tolist()                                     # flat offsets of the kernel
+    lo = shift[0]
+    kk = len(d)
+    dk = d.astype(np.float32)[:, None, None]                           # (K, 1, 1) float32 arithmetic
+    gain = np.float32(-0.5 / ICP_SPREAD ** 2)
+    kernel = np.empty((len(shift), n, len(local)), dtype=grid.logodds.dtype)
+    cells = grid.logodds.reshape(-1)
+    # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
+    c0, s0 = cos_sin(centre[:, 2])
+    ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
+    p_xx, p_yy, p_xy = ia * c0 ** 2 + ic * s0 ** 2, ia * s0 ** 2 + ic * c0 ** 2, (ia - ic) * c0 * s0
+    p_tt = 1.0 / spread[2] ** 2
+    has_normal = np.any(normals != 0, axis=1)
+    pose = pose.copy()
+    for _ in range(ICP_ITERATIONS):
+        c, s = cos_sin(pose[:, 2, None])
+        rx = c * local[:, 0] - s * local[:, 1]                         # (N, M) end point - position
+        ry = s * local[:, 0] + c * local[:, 1]
+        u = (pose[:, 0, None] + rx - grid.origin[0]) / res
+        v = (pose[:, 1, None] + ry - grid.origin[1]) / res
+        # cells within the kernel; clamped so every kernel cell is inside (the edge
+        # cells of the grid were never seen: nothing occupied to find there)
+        iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
+        iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
+        base = (np.arange(n)[:, None] * h + iv) * w + iu + lo          # (N, M), >= 0 (lo < 0)
+        for j, sh in enumerate(shift):                                 # kernel first: sums add whole slabs
+            np.take(cells[sh - lo:], base, out=kernel[j], mode="clip")  # cells base + sh
+        ex = (u - iu - 0.5).astype(np.float32) - dk                    # (K, N, M) end point - centre [cells]
+        ey = (v - iv - 0.5).astype(np.float32) - dk
+        # The target is the Gaussian-weighted mean of the occupied centres nearby, not
+        # the nearest one: a wall two cells thick has its surface between its rows.
+        # The weight exp(-(ex^2 + ey^2) / 2s^2) is one factor per axis.
+        near = (kernel > 0).view(np.int8).reshape(kk, kk, n, -1) * np.exp(gain * ey * ey)[:, None]
+        near *= np.exp(gain * ex * ex)                                  # (K rows, K columns, N, M)
+        by_column, by_row = near.sum(axis=0), near.sum(axis=1)         # (K, N, M) each
+        total = by_column.sum(axis=0)
+        found = total > 1e-6                                           # (N, M)
+        total = np.maximum(total, 1e-6) / res
+        gx = (by_column * ex).sum(axis=0) / total                      # target offsets [m]
+        gy = (by_row * ey).sum(axis=0) / total
+        # weights W = n n^T / sigma^2 on a surface, I / sigma^2 without a normal
+        nx = c * normals[:, 0] - s * normals[:, 1]                     # normals in the map frame
+        ny = s * normals[:, 0] + c * normals[:, 1]
+        k = found / ICP_SIGMA ** 2
+        a = np.where(has_normal, nx * nx, 1.0) * k
+        b = np.where(has_normal, nx * ny, 0.0) * k
+        e = np.where(has_normal, ny * ny, 1.0) * k
+        # normal equations with J = [[1, 0, -ry], [0, 1, rx]] per end point
+        fx, fy = a * gx + b * gy, b * gx + e * gy                      # W err
+        off = pose - centre
+        off[:, 2] = wrap_angle(off[:, 2])
+        hess = np.empty((n, 3, 3))
+        hess[:, 0, 0] = a.sum(1) + p_xx
+        hess[:, 1, 1] = e.sum(1) + p_yy
+        hess[:, 0, 1] = hess[:, 1, 0] = b.sum(1) + p_xy
+        hess[:, 0, 2] = hess[:, 2, 0] = (b * rx - a * ry).sum(1)
+        hess[:, 1, 2] = hess[:, 2, 1] = (e * rx - b * ry).sum(1)
+        hess[:, 2, 2] = (a * ry * ry - 2 * b * rx * ry + e * rx * rx).sum(1) + p_tt
+        grad = np.stack([fx.sum(1) + p_xx * off[:, 0] + p_xy * off[:, 1],
+                         fy.sum(1) + p_xy * off[:, 0] + p_yy * off[:, 1],
+                         (rx * fy - ry * fx).sum(1) + p_tt * off[:, 2]], axis=1)
+        pose -= solve3(hess, grad)
+    pose[:, 2] = wrap_angle(pose[:, 2])
+    return pose, hess

@@ -1,0 +1,173 @@
+"""The matcher's correlative search: candidate poses on a grid of shifts and turns,
+scored by the occupied cells their end points fall in, coarse to fine.
+
+A candidate's score is the number of end points on occupied cells (grid units:
+occupied or not). Translations of a level are whole cells of that level, so a
+candidate's cells are the cells of its heading plus a constant flat offset: one gather
+per end point and candidate, no trigonometry per candidate. The pooled maps are built
+once per update, only in the window the scans of all particles can reach.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.scratch import scratch
+from fastslam.geometry import cos_sin, transform_points, wrap_angle
+
+POOL = 4               # coarse level: cells per side of a pooled cell
+SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further
+
+
+def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
+    """1 for an occupied cell, else 0.
+
+    Occupied or not, never how strongly: cells the robot saw many times (behind it)
+    would otherwise pull the match backwards along a corridor.
+    """
+    return (logodds > 0).view(np.int8)
+
+
+def grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
+                 poses: NDArray[np.float64], turns: NDArray[np.float64], local: NDArray[np.float64],
+                 k: int, flags: bool = False) -> NDArray[np.int64]:
+    """Scores (N, A, (2k+1)^2) of poses turned by turns (A,) and shifted by -k..k cells.
+
+    level: (N, Hv, Wv) log-odds (only max(l, 0) counts) with cells of size `cell` and
+    lower-left corner `origin`, or (flags) already the 0/1 cell scores. Candidate
+    t = (dy + k) * (2k + 1) + (dx + k).
+    """
+    n, hv, wv = level.shape
+    cand = np.repeat(poses[:, None, :], len(turns), axis=1)
+    cand[..., 2] += turns
+    x, y = transform_points(cand, local)                                            # (N, A, M)
+    # Cells near the edge are clamped so every shifted cell stays inside: end points
+    # there are at most k cells off, in a part of the window nothing was seen in.
+    cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
+    cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
+    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx                # (N, A, M)
+    d = np.arange(-k, k + 1)
+    shifts = (d[:, None] * wv + d[None, :]).reshape(-1).tolist()            # (T,), ascending
+    # End points first: one gather per shift, from the flat map offset by the shift
+    # (no (N, A, T, M) index array), and the sum over end points adds whole (N, A)
+    # slabs. Every shifted cell is inside (clamped above), so mode="clip" never clips.
+    lo = shifts[0]
+    at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)       # (M, N, A)
+    at += lo                                                                # >= 0: cells are clamped k from the edge
+    f = level.reshape(-1)
+    vals = scratch("grid_search", (len(shifts),) + at.shape, level.dtype)  # (T, M, N, A), reused
+    for i, s in enumerate(shifts):
+        np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
+    # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
+    acc = np.int8 if len(local) < 128 else np.int16
+    sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)  # (T, N, A)
+    return sums.transpose(1, 2, 0).astype(np.int64, order="C")
+
+
+def pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[np.float64],
+          k: int, cell: float, start: NDArray[np.float64], prior: NDArray[np.float64], beams: int
+          ) -> NDArray[np.float64]:
+    """Best candidate of each particle as a pose (N, 3).
+
+    Scores become log-likelihoods as in _nats; the odometry prediction `start` (N, 3)
+    adds a Gaussian prior with std-devs prior (3,) along and across its heading and of
+    the heading, so that along a corridor, where the scan cannot tell, the particle
+    stays where odometry put it.
+    """
+    n, a, t = scores.shape
+    d = np.arange(-k, k + 1)
+    ox = (poses[:, 0] - start[:, 0])[:, None] + np.tile(d, 2 * k + 1)[None, :] * cell   # (N, T)
+    oy = (poses[:, 1] - start[:, 1])[:, None] + np.repeat(d, 2 * k + 1)[None, :] * cell
+    oa = wrap_angle(poses[:, 2] - start[:, 2])[:, None] + turns[None, :]                # (N, A)
+    along, across = ox, oy  # an isotropic prior needs no turning
+    if prior[0] != prior[1]:
+        c, s_ = cos_sin(start[:, 2, None])
+        along, across = c * ox + s_ * oy, c * oy - s_ * ox                               # start's frame
+    log_prior = -0.5 * (((along / prior[0]) ** 2 + (across / prior[1]) ** 2)[:, None, :]
+                        + ((oa / prior[2]) ** 2)[:, :, None])
+    s = _nats(scores, beams) + log_prior
+    best = s.reshape(n, -1).argmax(axis=1)
+    ia, it = np.divmod(best, t)
+    iy, ix = np.divmod(it, 2 * k + 1)
+    out = poses.copy()
+    out[:, 0] += d[ix] * cell
+    out[:, 1] += d[iy] * cell
+    out[:, 2] += turns[ia]
+    return out
+
+
+def _nats(scores: NDArray[np.int64], beams: int) -> NDArray[np.float64]:
+    """Scores (N, ...) as log-likelihoods relative to each particle's best.
+
+    A candidate that explains a fraction f less than the best leaves about f * beams
+    end points unexplained and gets log-likelihood -f * beams.
+    """
+    top = scores.reshape(len(scores), -1).max(axis=1)
+    top = np.maximum(top, 1).reshape((-1,) + (1,) * (scores.ndim - 1))
+    return (scores - top) / top * beams
+
+
+def pool_occupied(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+    """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
+    2x2 and 4x4 block is occupied (H, W multiples of 4).
+
+    Column pairs of a contiguous flag array are read as one uint16 each, row pairs
+    as the two halves of a doubled row: cheaper than maxima of strided int8 views.
+    A few maps at a time, in reused work arrays: the temporaries stay in cache.
+    """
+    n, h, w = level.shape
+    maps = 8  # at a time
+    half = np.empty((n, h // 2, w // 2), dtype=np.bool_)
+    quarter = np.empty((n, h // 4, w // 4), dtype=np.bool_)
+    for a in range(0, n, maps):
+        b = min(n, a + maps)
+        rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
+                          out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
+        occupied = np.greater(rows, 0, out=rows.view(np.bool_))
+        np.not_equal(occupied.view(np.uint16), 0, out=half[a:b])
+        pairs = half[a:b].reshape(b - a, h // 4, w)                       # rows 2i, 2i+1 side by side
+        quads = np.bitwise_or(pairs[:, :, :w // 2], pairs[:, :, w // 2:],
+                              out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
+        np.not_equal(quads.view(np.uint16), 0, out=quarter[a:b])
+    return half.view(np.int8), quarter.view(np.int8)
+
+
+def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:
+    """Cell bounds (x0, y0, x1, y1) of the part of the grid within reach of any pose,
+    with sides a multiple of POOL cells."""
+    h, w = grid.shape
+    lo = grid.world_to_cell(poses[:, :2].min(axis=0) - reach)
+    hi = grid.world_to_cell(poses[:, :2].max(axis=0) + reach) + 1
+    x0, y0 = (int(v) for v in np.maximum(lo, 0))
+    x1 = min(w, x0 + POOL * math.ceil((int(hi[0]) - x0) / POOL))
+    y1 = min(h, y0 + POOL * math.ceil((int(hi[1]) - y0) / POOL))
+    x1 = x0 + POOL * ((x1 - x0) // POOL)
+    y1 = y0 + POOL * ((y1 - y0) // POOL)
+    return x0, y0, x1, y1
+
+
+def search_area(grid: GridMaps, poses: NDArray[np.float64], local: NDArray[np.float64], turn: float,
+                 shift: float, window: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """The part of window (x0, y0, x1, y1) the searches can read: the end points of every
+    pose turned by up to +-turn, shifted by up to shift [m], with a margin. It keeps the
+    window's alignment to POOL cells, so the pooled cells are the window's own.
+
+    A 180-degree scan covers about half the disc around the robot: half the pooling.
+    """
+    x0, y0, x1, y1 = window
+    cand = np.repeat(poses[:, None, :], 5, axis=1)
+    cand[..., 2] += np.linspace(-turn, turn, 5)
+    x, y = transform_points(cand, local)
+    # between the sampled turns the end points bulge out by at most r (1 - cos(turn / 4))
+    reach = float(np.hypot(local[:, 0], local[:, 1]).max())
+    margin = shift + reach * (1.0 - math.cos(turn / 4)) + SEARCH_MARGIN
+    lo = grid.world_to_cell(np.array([x.min(), y.min()]) - margin)
+    hi = grid.world_to_cell(np.array([x.max(), y.max()]) + margin) + 1
+    nx0 = x0 + POOL * max(0, (int(lo[0]) - x0) // POOL)
+    ny0 = y0 + POOL * max(0, (int(lo[1]) - y0) // POOL)
+    nx1 = min(x1, nx0 + POOL * math.ceil(max(int(hi[0]) - nx0, 0) / POOL))
+    ny1 = min(y1, ny0 + POOL * math.ceil(max(int(hi[1]) - ny0, 0) / POOL))
+    return nx0, ny0, nx1, ny1

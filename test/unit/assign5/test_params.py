@@ -1,0 +1,54 @@
+"""The SLAM node's parameters: ROS-only settings in NodeConfig, the algorithm's in SlamConfig."""
+from __future__ import annotations
+
+import pytest
+
+from assign5.params import CORE_KEYS, NODE_KEYS, NodeConfig, split_params
+from fastslam.config import ConfigError, SlamConfig
+
+
+def test_params_split_into_node_and_core():
+    node, core = split_params({"particles": 7, "map_frame": "world", "map_update_interval": 1})
+    assert core == SlamConfig(particles=7)
+    assert node.map_frame == "world" and node.map_update_interval == 1.0
+
+
+@pytest.mark.parametrize("params, message", [
+    ({"particles": 0}, "particles=0 must be in [1, 10000]"),
+    ({"map_resolution": -0.05}, "map_resolution=-0.05 must be in"),
+    ({"transform_publish_period": -1.0}, "transform_publish_period=-1.0 must be in [0.0, 10.0]"),
+    ({"odom_topic": ""}, "odom_topic='' must be a non-empty string"),
+    ({"save_on_exit": "yes"}, "save_on_exit='yes' must be true or false"),
+    ({"debug_maps": 1.5}, "debug_maps=1.5 must be an integer"),
+    ({"scan_topik": "x"}, "unknown parameter 'scan_topik'"),
+])
+def test_bad_node_parameters_are_named(params, message):
+    with pytest.raises(ConfigError) as err:
+        split_params(params)
+    assert message in str(err.value)
+
+
+def test_node_defaults_are_valid_and_like_gmapping():
+    cfg = NodeConfig()
+    assert (cfg.map_frame, cfg.odom_frame, cfg.transform_publish_period) == ("map", "odom", 0.05)
+
+
+def test_numbers_and_flags_are_coerced_and_empty_params_give_the_defaults():
+    node, core = split_params({"map_update_interval": 5, "save_on_exit": 1, "debug_maps": 2.0, "particles": 3.0})
+    assert node.map_update_interval == 5.0 and node.save_on_exit is True and node.debug_maps == 2
+    assert core.particles == 3 and type(core.particles) is int
+    assert split_params({}) == (NodeConfig(), SlamConfig())
+
+
+def test_every_key_has_one_home():
+    assert not NODE_KEYS & CORE_KEYS
+    assert {"scan_topic", "map_frame", "odom_timeout"} <= NODE_KEYS and "particles" in CORE_KEYS
+
+
+def test_slam_gmapping_names_reach_the_node_and_the_core():
+    notices: list[str] = []
+    node, core = split_params({"delta": 0.1, "map_update_interval": 5.0, "throttle_scans": 1, "particles": 30},
+                              notices)
+    assert core.map_resolution == 0.1 and core.particles == 30 and node.map_update_interval == 5.0
+    assert len(notices) == 2
+    assert any(n.startswith("throttle_scans=1 (slam_gmapping's) has no counterpart") for n in notices)

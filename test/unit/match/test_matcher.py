@@ -1,0 +1,105 @@
+"""match_poses: the whole matcher on maps of the pillar room (coarse-to-fine search, then
+hill climb or ICP), its fall-backs, and its parameters from the configuration."""
+from __future__ import annotations
+
+import numpy as np
+
+from fastslam.config import SlamConfig
+from fastslam.filter.scan import Scan, select_beams
+from fastslam.filter.slam import FastSlam
+from fastslam.match import MatchParams, match_poses
+
+ANGLES = np.radians(np.arange(360.0))
+
+
+def test_matcher_recovers_a_known_offset(mapped_room, scan360):
+    slam, _ = mapped_room()
+    truth = np.array([0.2, -0.3, 0.4])
+    beams = select_beams(scan360(truth), slam.cfg)
+    offsets = np.array([[0.2, 0.0, np.radians(5)], [-0.15, 0.12, -np.radians(5)], [0.0, 0.0, 0.0]])
+    match = match_poses(slam.grid, truth + offsets, beams, MatchParams.from_config(slam.cfg))
+    assert match.trusted.all()
+    err = match.poses - truth
+    assert np.abs(err[:, :2]).max() < 0.03          # within about half a cell (0.05 m)
+    assert np.abs(err[:, 2]).max() < np.radians(1.5)  # the map itself is only so sharp
+    assert match.covariance is None                  # the hill climb has none
+
+
+def test_matcher_falls_back_on_an_empty_map(scan360):
+    cfg = SlamConfig(particles=4, seed=0, proposal="scan_match")
+    slam = FastSlam(cfg)
+    poses = np.array([[0.1, 0.0, 0.0]] * 4)
+    match = match_poses(slam.grid, poses, select_beams(scan360(np.zeros(3)), cfg), MatchParams.from_config(cfg))
+    assert not match.trusted.any()
+    np.testing.assert_array_equal(match.poses, poses)
+
+
+def test_matcher_falls_back_without_returns(mapped_room):
+    slam, pose = mapped_room()
+    scan = Scan(ranges=np.full(360, np.inf), angles=ANGLES, range_min=0.12, range_max=3.5)
+    match = match_poses(slam.grid, slam.poses, select_beams(scan, slam.cfg), MatchParams.from_config(slam.cfg))
+    assert not match.trusted.any()
+    np.testing.assert_array_equal(match.poses, slam.poses)
+
+
+def test_matcher_needs_ten_returns(mapped_room, scan360):
+    slam, _ = mapped_room(particles=1)
+    truth = np.array([0.2, -0.3, 0.4])
+    scan = scan360(truth)
+    returns = np.flatnonzero(scan.ranges < 3.5)
+    start = truth[None] + [[0.05, 0.0, 0.0]]
+    anything = MatchParams(xy_range=0.3, theta_range=0.15, min_score=0.0, min_known=0)   # trusts any match
+    for count, matched in ((9, False), (10, True)):
+        keep = returns[np.linspace(0, len(returns) - 1, count).astype(int)]
+        ranges = np.full(360, np.inf)
+        ranges[keep] = scan.ranges[keep]
+        beams = select_beams(Scan(ranges=ranges, angles=ANGLES, range_min=0.12, range_max=3.5), slam.cfg)
+        assert np.count_nonzero(beams.hit) == count
+        assert match_poses(slam.grid, start, beams, anything).trusted.all() == matched
+
+
+def test_matcher_distrusts_a_map_that_knows_too_little(mapped_room, scan360):
+    slam, _ = mapped_room(particles=1)
+    truth = np.array([0.2, -0.3, 0.4])
+    beams = select_beams(scan360(truth), slam.cfg)
+    params = MatchParams.from_config(slam.cfg)
+    assert match_poses(slam.grid, truth[None], beams, params).trusted.all()
+    strict = MatchParams(beams=params.beams, xy_range=params.xy_range, theta_range=params.theta_range,
+                         min_known=10**6)
+    match = match_poses(slam.grid, truth[None], beams, strict)
+    assert not match.trusted.any()
+    assert np.abs(match.poses - truth).max() < 0.05    # the pose is still matched, only not trusted
+
+
+def test_matcher_with_the_motion_prior_and_icp_recovers_the_truth(mapped_room, scan360):
+    slam, _ = mapped_room()
+    params = MatchParams.from_config(slam.cfg.replace(match_prior="motion", match_refine="icp"))
+    truth = np.array([0.2, -0.3, 0.4])
+    beams = select_beams(scan360(truth), slam.cfg)
+    centre = np.tile(truth + [0.03, -0.02, 0.02], (3, 1))              # odometry's prediction
+    poses = centre + np.array([[0.1, 0.0, 0.05], [-0.08, 0.06, -0.04], [0.0, 0.0, 0.0]])
+    match = match_poses(slam.grid, poses, beams, params, prior=(centre, np.array([0.05, 0.05, 0.05])))
+    assert match.trusted.all()
+    err = match.poses - truth
+    assert np.abs(err[:, :2]).max() < 0.015
+    assert np.abs(err[:, 2]).max() < np.radians(0.5)
+
+
+def test_icp_with_covariance_returns_one_per_particle(mapped_room, scan360):
+    slam, _ = mapped_room()
+    cfg = slam.cfg.replace(match_refine="icp", match_spread="match")
+    truth = np.array([0.2, -0.3, 0.4])
+    match = match_poses(slam.grid, np.tile(truth, (3, 1)), select_beams(scan360(truth), cfg),
+                        MatchParams.from_config(cfg))
+    assert match.covariance is not None and match.covariance.shape == (3, 3, 3)
+    np.testing.assert_allclose(match.covariance, np.swapaxes(match.covariance, 1, 2))   # symmetric
+    assert np.all(np.linalg.eigvalsh(match.covariance) > 0)                               # positive definite
+    assert np.all(np.sqrt(match.covariance[:, [0, 1], [0, 1]]) < 0.05)   # a room pins x and y to cm
+
+
+def test_params_from_the_configuration():
+    cfg = SlamConfig(match_beams=30, match_xy_range=0.4, match_theta_range=0.2, match_min_score=0.7,
+                     match_min_known=5, match_refine="icp", match_spread="match")
+    assert MatchParams.from_config(cfg) == MatchParams(beams=30, xy_range=0.4, theta_range=0.2, min_score=0.7,
+                                                       min_known=5, refine="icp", covariance=True)
+    assert MatchParams.from_config(SlamConfig()) == MatchParams()        # the defaults agree

@@ -20,7 +20,7 @@ help:
 setup:
 	@bash scripts/setup.sh
 
-$(SETUP_STAMP): CMakeLists.txt package.xml setup.py scripts/setup.sh scripts/ws.sh scripts/debian-packages.txt scripts/requirements-dev.txt $(wildcard src/*.py)
+$(SETUP_STAMP): CMakeLists.txt package.xml setup.py scripts/setup.sh scripts/ws.sh scripts/debian-packages.txt scripts/requirements-dev.txt scripts/requirements-py38.txt $(wildcard src/*.py)
 	@bash scripts/setup.sh
 
 test: $(SETUP_STAMP)

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.common import ROOT, data_path
+from bench.common import ROOT, data_path, progress
 from fastslam.eval.trajectory import ate, match_by_time, relations_score
 from fastslam.io.trajectory_files import read_relations, read_trajectory
 
@@ -164,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="bench-accuracy-") as tmp:
         for name in args.logs:
             case = real_case if name in REAL else corrected_case
-            log_rows = [case(name, seed, config, args.set, Path(tmp)) for seed in args.seeds]
+            log_rows = [case(name, seed, config, args.set, Path(tmp)) for seed in progress(args.seeds, name)]
             rows += log_rows
             print_log(log_rows, name in REAL)
     print(summary(rows))

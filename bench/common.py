@@ -7,7 +7,11 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable, TypeVar
+
+from tqdm import tqdm
+
+T = TypeVar("T")
 
 ROOT = Path(__file__).resolve().parents[1]
 # shared/ lies beside the repository (CI clones main next to it), or beside the folder
@@ -31,3 +35,8 @@ def in_own_process(module: str, *args: Any) -> dict[str, Any]:
     if out.returncode != 0:
         raise RuntimeError(f"{module} case {list(args)} failed:\n{out.stderr.strip()}")
     return dict(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def progress(items: Iterable[T], desc: str, total: int | None = None) -> Iterable[T]:
+    """``items`` with a tqdm bar on stderr while they run (on a terminal only), cleared after."""
+    return tqdm(items, desc=desc, total=total, leave=False, disable=not sys.stderr.isatty(), file=sys.stderr)

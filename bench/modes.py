@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.common import data_path, in_own_process
+from bench.common import data_path, in_own_process, progress
 from fastslam.config import SlamConfig
 from fastslam.eval.trajectory import ate, rpe
 from fastslam.filter.scan import Scan
@@ -100,7 +100,7 @@ def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
           f"{'wall s':>7} {'ms/scan':>7} {'peak MB':>7}")
     rows = []
     for name in configs:
-        for seed in seeds:
+        for seed in progress(seeds, name):
             rows.append(in_own_process("bench.modes", "intel", name, seed, level))
             print(_row(rows[-1]), flush=True)
     for seed in seeds:
@@ -141,7 +141,7 @@ def office_suite(seeds: tuple[int, ...] = (0, 1, 2),
           f"{'ms/upd':>7} {'filter s':>8} {'peak MB':>7}")
     rows = []
     for name in configs:
-        for seed in seeds:
+        for seed in progress(seeds, name):
             r = in_own_process("bench.modes", "office", name, seed)
             rows.append(r)
             print(f"{name:<15} {seed:>4} {r['particles']:>3} {r['trajectory_rms_m']:>7.3f} "

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.common import in_own_process
+from bench.common import in_own_process, progress
 from fastslam.config import SlamConfig
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
@@ -69,7 +69,7 @@ def speed_suite() -> list[dict]:
     rows = []
     print(f"{'N':>4} {'beams':>5} {'map':>5} {'ms/step':>8} {'p95':>7} {'maps MB':>8} "
           f"{'peak MB':>8} {'budget MB':>9}")
-    for size in (10.0, 40.0):
+    for size in progress((10.0, 40.0), "map sizes"):
         for n in (20, 50, 100):
             for beams in (60, 360):
                 row = in_own_process("bench.speed", n, beams, size)

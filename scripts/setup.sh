@@ -42,19 +42,38 @@ if ! cmp -s scripts/requirements-dev.txt .venv/.requirements 2>/dev/null; then
   cp scripts/requirements-dev.txt .venv/.requirements
 fi
 
+# ROS Noetic's platform for make test: a Python 3.8 venv with Ubuntu 20.04's library
+# versions (scripts/requirements-py38.txt); git and catkin ignore .venv38.
+py38=""
+for c in "${PYTHON38:-}" "${PYENV_ROOT:-$HOME/.pyenv}"/versions/3.8*/bin/python3.8 "$(command -v python3.8)"; do
+  [ -n "$c" ] && "$c" -c 'import sys; assert sys.version_info[:2] == (3, 8)' 2>/dev/null && { py38=$c; break; }
+done
+if [ -z "$py38" ]; then
+  echo "setup: no Python 3.8 (set PYTHON38=/path/to/python3.8): make test's Python 3.8 run will fail" >&2
+elif ! cmp -s scripts/requirements-py38.txt .venv38/.requirements 2>/dev/null; then
+  echo "setup: creating .venv38 from $py38 (Ubuntu 20.04's numpy, Pillow, tqdm, matplotlib, PyYAML)"
+  rm -rf .venv38
+  "$py38" -m venv .venv38 || die "$py38 -m venv .venv38 failed"
+  touch .venv38/CATKIN_IGNORE .venv38/rospack_nosubdirs
+  .venv38/bin/python -m pip install -q --disable-pip-version-check -r scripts/requirements-py38.txt \
+    || die "pip install of scripts/requirements-py38.txt into .venv38 failed"
+  cp scripts/requirements-py38.txt .venv38/.requirements
+fi
+
 # The workspace links the whole package folder; it lies outside it (scripts/ws.sh).
 ws="$(bash scripts/ws.sh)"
 # The same requirements kept as wheels beside it: make test sets up a fresh copy of the
 # package (test/user) and must manage without a network (isolated test runs).
 wheels="$(dirname "$ws")/wheels"
-if ! cmp -s scripts/requirements-dev.txt "$wheels/.requirements" 2>/dev/null; then
-  if .venv/bin/python -m pip download -q --disable-pip-version-check -d "$wheels" -r scripts/requirements-dev.txt \
-      >/dev/null 2>&1; then
-    cp scripts/requirements-dev.txt "$wheels/.requirements"
+for venv in .venv .venv38; do
+  req=scripts/requirements-dev.txt; [ "$venv" = .venv38 ] && req=scripts/requirements-py38.txt
+  [ -x "$venv/bin/python" ] && ! cmp -s "$req" "$wheels/.$(basename "$req")" 2>/dev/null || continue
+  if "$venv/bin/python" -m pip download -q --disable-pip-version-check -d "$wheels" -r "$req" >/dev/null 2>&1; then
+    cp "$req" "$wheels/.$(basename "$req")"
   else
-    echo "setup: could not keep the requirements' wheels in $wheels (no network?): make test's user paths need them"
+    echo "setup: could not keep the wheels of $req in $wheels (no network?): make test's user paths need them"
   fi
-fi
+done
 if [ -d .ws ]; then   # the old place, inside the package: rosrun would find its copies of slam.py
   echo "setup: removing .ws/ (the workspace now lives in $ws)"
   rm -rf .ws

@@ -4,11 +4,10 @@ pillar room and scans of it cast by the simulator's exact lidar, and seeded gene
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 import pytest
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.filter.scan import Scan
 from fastslam.sim.lidar import cast_rays
@@ -17,7 +16,10 @@ from fastslam.sim.world_loader import load_world
 
 ROOT = Path(__file__).resolve().parents[1]
 
-RoomRanges = Callable[[ArrayLike, ArrayLike], NDArray[np.float64]]
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
+
+    RoomRanges = Callable[[ArrayLike, ArrayLike], NDArray[np.float64]]
 
 
 @pytest.fixture(scope="session")

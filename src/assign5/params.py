@@ -9,6 +9,7 @@ node stops at start-up with one line naming the parameter.
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass, field
 from typing import Any, Mapping, NoReturn, TypeVar
 
@@ -51,6 +52,39 @@ class NodeConfig:
         for f in dataclasses.fields(self):
             if f.type == "str" and not getattr(self, f.name):
                 raise ConfigError(f"{f.name}='' must be a non-empty string")
+
+
+def map_path(map_file: str) -> str:
+    """map_file with ~ expanded; a relative one lies in $ROS_HOME (default ~/.ros, as
+    rospkg.get_ros_home), which is made if missing."""
+    path = os.path.expanduser(map_file)
+    if os.path.isabs(path):
+        return path
+    home = os.environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros")
+    os.makedirs(home, exist_ok=True)
+    return os.path.join(home, path)
+
+
+@dataclass(frozen=True)
+class RelayConfig:
+    """tf_relay.py's private parameters: the transform map_frame -> odom_frame is dropped."""
+
+    map_frame: str = field(default="map", metadata={"doc": "parent frame of the dropped transform"})
+    odom_frame: str = field(default="odom", metadata={"doc": "child frame of the dropped transform"})
+
+
+@dataclass(frozen=True)
+class ReportConfig:
+    """run_report.py's private parameters."""
+
+    world_file: str = field(default="", metadata={"doc": "the simulated world's YAML (its spawn and walls)"})
+    out: str = field(default="out/demo", metadata={"doc": "results folder"})
+    settle: float = _num(10.0, 0.0, 600.0, "after the route: wait this long for the node's final map [s]")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        if not self.world_file:
+            raise ConfigError("world_file='' must name the world's YAML file")
 
 
 NODE_KEYS = {f.name for f in dataclasses.fields(NodeConfig)}

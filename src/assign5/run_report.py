@@ -10,7 +10,6 @@ import json
 import os
 import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path as FilePath
 
 import numpy as np
@@ -20,14 +19,13 @@ from nav_msgs.srv import GetMap
 from std_msgs.msg import Bool, Float64
 
 from fastslam.eval.maps import run_quality
-from fastslam.eval.render import render_map, write_png
-from fastslam.fields import ConfigError, check_fields
-from fastslam.fields import num as _num
+from fastslam.eval.render import ESTIMATE_RGB, TRUTH_RGB, map_picture, write_png
 from fastslam.geometry import relative, yaw_from_quaternion
 from fastslam.io.map_files import save_map
 from fastslam.sim.world_loader import load_world
 
 from . import convert, params
+from .params import ReportConfig
 
 
 class RunRecorder:
@@ -112,24 +110,10 @@ def write_outputs(out: FilePath, metrics: dict, occ: np.ndarray, grid: Occupancy
     out.mkdir(parents=True, exist_ok=True)
     origin = (grid.info.origin.position.x, grid.info.origin.position.y, 0.0)
     save_map(str(out / "map"), occ, grid.info.resolution, origin)
-    rgb = render_map(occ, grid.info.resolution, origin,
-                     {"truth": (truth[:, 1:3], (0, 160, 0)), "estimate": (traj[:, 1:3], (220, 0, 0))}, scale=3)
-    write_png(str(out / "map.png"), rgb)
+    picture = map_picture(occ, grid.info.resolution, origin,
+                          {"truth": (truth[:, 1:3], TRUTH_RGB), "estimate": (traj[:, 1:3], ESTIMATE_RGB)})
+    write_png(out / "map.png", picture)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-
-
-@dataclass(frozen=True)
-class ReportConfig:
-    """run_report.py's private parameters."""
-
-    world_file: str = field(default="", metadata={"doc": "the simulated world's YAML (its spawn and walls)"})
-    out: str = field(default="out/demo", metadata={"doc": "results folder"})
-    settle: float = _num(10.0, 0.0, 600.0, "after the route: wait this long for the node's final map [s]")
-
-    def __post_init__(self) -> None:
-        check_fields(self)
-        if not self.world_file:
-            raise ConfigError("world_file='' must name the world's YAML file")
 
 
 def main() -> None:

@@ -1,12 +1,10 @@
 """The FastSLAM ROS node: messages in, one core call per scan, messages out."""
 from __future__ import annotations
 
-import os
 import threading
 import traceback
 
 import numpy as np
-import rospkg
 import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
@@ -24,18 +22,8 @@ from fastslam.io.map_files import MapSaveError, save_map
 
 from . import convert
 from .convert import BadMessage
-from .params import NodeConfig
+from .params import NodeConfig, map_path
 from .watchdog import Watchdog
-
-
-def map_path(map_file: str) -> str:
-    """map_file with ~ expanded; a relative one lies in $ROS_HOME (default ~/.ros), made if missing."""
-    path = os.path.expanduser(map_file)
-    if os.path.isabs(path):
-        return path
-    home = rospkg.get_ros_home()
-    os.makedirs(home, exist_ok=True)
-    return os.path.join(home, path)
 
 
 class SlamNode:

@@ -2,20 +2,11 @@
 map -> odom is the only one (remap the bag's /tf to tf_in)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import rospy
 from tf2_msgs.msg import TFMessage
 
 from . import params
-
-
-@dataclass(frozen=True)
-class RelayConfig:
-    """tf_relay.py's private parameters: the transform map_frame -> odom_frame is dropped."""
-
-    map_frame: str = field(default="map", metadata={"doc": "parent frame of the dropped transform"})
-    odom_frame: str = field(default="odom", metadata={"doc": "child frame of the dropped transform"})
+from .params import RelayConfig
 
 
 def main() -> None:

@@ -1,9 +1,11 @@
 """Convert a CARMEN log into a ROS 1 bag for the offline SLAM.
 
     python -m fastslam.carmen_to_bag LOG --out BAG [--odom-noise LEVEL --seed N] [--max-range R] [--limit K]
+                                     [--format tum] [--quiet]
 
-Writes BAG (/scan, /odom, /tf, /tf_static), BAG.gt.txt (the log's poses, ``t x y
-theta``) and BAG.odom.txt (the odometry). The odometry re-integrates the logged
+Writes BAG (/scan, /odom, /tf, /tf_static), BAG.gt.txt (the log's poses) and
+BAG.odom.txt (the odometry), as ``t x y theta`` or, with --format tum, TUM's
+``t x y z qx qy qz qw`` (what evo reads). The odometry re-integrates the logged
 motion with the noise model of :mod:`fastslam.sim.odometry_noise` scaled by LEVEL
 (0 = the logged poses).
 """
@@ -14,18 +16,22 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
+from tqdm import tqdm
 
 from fastslam.eval.trajectory import ate
 from fastslam.io.bag_writer import BagWriter
 from fastslam.io.carmen_log import CarmenError, CarmenLog, read_log
 from fastslam.io.records import BagError, OdomRecord, ScanRecord
 from fastslam.io.staging import staged
-from fastslam.io.trajectory_files import write_trajectory
+from fastslam.io.trajectory_files import FORMATS, write_trajectory
 from fastslam.sim.odometry_noise import DEFAULT_ALPHAS, OdomNoise, noisy_odometry
 from fastslam.transforms import StaticTransform
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 @dataclass(frozen=True)
@@ -71,7 +77,7 @@ def log_trajectory(log: CarmenLog) -> tuple[NDArray[np.float64], NDArray[np.floa
 
 def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 0.0, seed: int = 0,
             alphas: OdomNoise = DEFAULT_ALPHAS, odom_frame: str = "odom", base_frame: str = "base_link",
-            laser_frame: str = "laser") -> Conversion:
+            laser_frame: str = "laser", fmt: str = "xytheta", progress: bool = False) -> Conversion:
     """Write ``out`` (a new bag), ``out.gt.txt`` and ``out.odom.txt`` from a parsed log.
 
     Args:
@@ -79,6 +85,8 @@ def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 
         out: bag path; must not exist.
         odom_noise: noise level of the re-integrated odometry (0 = exact).
         seed: seed of the odometry noise; the same (level, seed) gives the same bag.
+        fmt: the trajectories' format, "xytheta" or "tum".
+        progress: a progress bar (tqdm) on stderr.
     """
     if not log.scans:
         raise ValueError("the log has no FLASER or ROBOTLASER1 scans")
@@ -95,13 +103,15 @@ def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 
     with staged(reference_path(out), reference_path(out, "odom"), out) as (gt_tmp, odom_tmp, bag_tmp):
         with BagWriter(bag_tmp) as writer:
             writer.static([StaticTransform.planar(base_frame, laser_frame, *mount)], t=float(times[0]))
-            for s, t, (x, y, yaw) in zip(log.scans, times.tolist(), odometry.tolist()):
+            rows = zip(log.scans, times.tolist(), odometry.tolist())
+            for s, t, (x, y, yaw) in tqdm(rows, total=len(times), unit="scan", disable=not progress,
+                                          file=sys.stderr, mininterval=0.5):
                 writer.odom(OdomRecord(t, x, y, yaw, child_frame_id=base_frame, frame_id=odom_frame))
                 writer.scan(ScanRecord(t, s.ranges, s.angle_min, s.angle_increment, 0.0, s.max_range,
                                        frame_id=laser_frame))
-        write_trajectory(gt_tmp, times, truth, comment=comment)
+        write_trajectory(gt_tmp, times, truth, comment=comment, fmt=fmt)
         # the odometry as a trajectory too, so dead reckoning can be scored with fastslam.evaluate
-        write_trajectory(odom_tmp, times, odometry, comment=f"odometry in {out.name}\n{comment}")
+        write_trajectory(odom_tmp, times, odometry, comment=f"odometry in {out.name}\n{comment}", fmt=fmt)
     return Conversion(bag=out, reference=reference_path(out), scans=len(times), mount=mount, times=times,
                       truth=truth, odometry=odometry)
 
@@ -116,10 +126,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-range", type=float, default=None, metavar="R",
                     help="readings >= R [m] are no returns (FLASER default 81.83)")
     ap.add_argument("--limit", type=int, default=None, help="convert only the first K scans")
+    ap.add_argument("--format", choices=FORMATS, default="xytheta",
+                    help="reference and odometry trajectories: t x y theta (default) or TUM's t x y z qx qy qz qw")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar (there is none off a terminal)")
     args = ap.parse_args(argv)
     try:
         log = read_log(args.log, max_range=args.max_range, limit=args.limit)
-        result = convert(log, args.out, odom_noise=args.odom_noise, seed=args.seed)
+        result = convert(log, args.out, odom_noise=args.odom_noise, seed=args.seed, fmt=args.format,
+                         progress=not args.quiet and sys.stderr.isatty())
     except (OSError, CarmenError, BagError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 1

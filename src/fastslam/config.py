@@ -14,14 +14,17 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import choice as _choice
 from fastslam.fields import num as _num
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 __all__ = ["ConfigError", "SlamConfig", "parse_override", "translate_gmapping"]
 

@@ -2,12 +2,14 @@
 ground-truth relations (the Kuemmerle et al. 2009 metric).
 
     python -m fastslam.evaluate REFERENCE ESTIMATE [--max-dt 0.05] [--interpolate] [--delta 1] [--json]
+                                [--plot FILE.png]
     python -m fastslam.evaluate --relations FILE ESTIMATE [--json]
 
 Trajectory files hold ``t x y theta`` lines or TUM's ``t x y z qx qy qz qw`` (``#``
 comments allowed), e.g. ``out.bag.gt.txt`` from ``python -m fastslam.carmen_to_bag`` and a
 SLAM run's trajectory; a relations file ``t1 t2 x y z roll pitch yaw`` lines. See
-:mod:`fastslam.eval.trajectory` for the definitions.
+:mod:`fastslam.eval.trajectory` for the definitions. ``--plot`` draws both trajectories
+after the alignment and the position error over time (matplotlib).
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 from typing import Any
 
 from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score
@@ -49,10 +52,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--interpolate", action="store_true", help="interpolate the reference instead")
     ap.add_argument("--delta", type=int, default=1, help="RPE over matched poses this many apart")
     ap.add_argument("--json", action="store_true", help="print the scores as JSON")
+    ap.add_argument("--plot", metavar="FILE.png", help="also draw the aligned trajectories and the error over time")
     args = ap.parse_args(argv)
     wanted = 1 if args.relations else 2
     if len(args.files) != wanted:
         ap.error("--relations FILE takes one ESTIMATE" if args.relations else "expected REFERENCE ESTIMATE")
+    if args.relations and args.plot:
+        ap.error("--plot draws an estimate against a reference trajectory, not against relations")
     if args.delta < 1 or not args.max_dt >= 0:
         print(f"error: --delta must be at least 1 (got {args.delta}) and --max-dt at least 0 (got {args.max_dt})",
               file=sys.stderr)
@@ -74,7 +80,17 @@ def main(argv: list[str] | None = None) -> int:
     if s.matched == 0:
         print(f"error: no estimate pose within {args.max_dt} s of a reference pose", file=sys.stderr)
         return 1
-    return _report(s.as_dict(), format_table(s), args.json)
+    code = _report(s.as_dict(), format_table(s), args.json)
+    if args.plot:
+        from fastslam.eval.plots import plot_errors
+
+        try:
+            plot_errors(args.plot, ref_t, ref, est_t, est, max_dt=args.max_dt, interpolate=args.interpolate,
+                        title=f"{Path(args.files[1]).name} against {Path(args.files[0]).name}")
+        except OSError as err:
+            print(f"error: cannot write {args.plot}: {err.strerror or err}", file=sys.stderr)
+            return 2
+    return code
 
 
 def _report(scores: dict[str, Any], table: str, as_json: bool) -> int:

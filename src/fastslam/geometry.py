@@ -1,8 +1,12 @@
 """Planar pose helpers on numpy arrays; poses are [..., 3] = (x, y, theta)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 def wrap_angle(a: ArrayLike) -> NDArray[np.float64]:

@@ -2,8 +2,9 @@
 
     python -m fastslam.offline BAG --out DIR [--config FILE] [--set key=value]...
                                [--seed N] [--scan-topic T] [--odom-topic T] [--format tum]
+                               [--reference FILE] [--quiet]
 
-Reads the bag with `rosbags`, takes the laser mounting from /tf_static or /tf, feeds
+Reads the bag with `rosbags` or ROS's `rosbag`, takes the laser mounting from /tf_static or /tf, feeds
 every scan and odometry message through the same Frontend and FastSlam.step as the
 slam.py node, and writes DIR/map.pgm + map.yaml (map_server format), map.png,
 stats.json, the effective config.yaml and three trajectories (header stamps;
@@ -13,6 +14,12 @@ trajectory_scans.txt, the same path at every scan the filter saw, the odometry s
 the last processed scan composed onto it in between; live_poses.txt, one pose per
 scan as map->odom gave it during the run: the best particle at the last processed
 scan, composed with the odometry since.
+
+With a reference, the bag's /ground_truth (nav_msgs/Odometry, as the simulator records
+it) or ``--reference FILE`` (``t x y theta`` or TUM lines), stats.json gets the ATE and
+RPE of trajectory.txt as ``python -m fastslam.evaluate REF DIR/trajectory.txt`` prints
+them, map.png draws the reference too, and error.png plots both paths after alignment
+and the error over time. A progress bar (tqdm) runs on a terminal, unless --quiet.
 """
 from __future__ import annotations
 
@@ -23,24 +30,38 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from tqdm import tqdm
 
 from fastslam.config import ConfigError, SlamConfig, parse_override
-from fastslam.eval.render import render_map, write_png
+from fastslam.eval.render import ESTIMATE_RGB, TRUTH_RGB, map_picture, write_png
+from fastslam.eval.trajectory import align_2d, apply_alignment, match_by_time, score
 from fastslam.filter.frontend import Dropped, Frontend, drop_key
 from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.slam import FastSlam
 from fastslam.geometry import compose, inverse, relative
-from fastslam.io.bag_reader import BagData, read_bag
+from fastslam.io.bag_reader import REFERENCE_TOPIC, BagData, read_bag
 from fastslam.io.map_files import save_map
-from fastslam.io.records import BagError, OdomRecord
+from fastslam.io.records import BagError, OdomRecord, ScanRecord
 from fastslam.io.staging import staged_folder
-from fastslam.io.trajectory_files import FORMATS, write_trajectory
+from fastslam.io.trajectory_files import FORMATS, TrajectoryError, read_trajectory, write_trajectory
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "slam.yaml"
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A reference trajectory: where it came from, (T,) times and (T, 3) poses."""
+
+    source: str
+    times: NDArray[np.float64]
+    poses: NDArray[np.float64]
 
 
 @dataclass
@@ -55,6 +76,8 @@ class OfflineResult:
     # one row per scan the filter saw: t, odometry x y theta, live pose x y theta,
     # index of the last processed update, filter life (resets before it), processed (0/1)
     scan_rows: list[list[float]] = field(default_factory=list)
+    reference: Reference | None = None
+    accuracy: dict[str, Any] | None = None   # against the reference, set by write_results
 
     def live_poses(self) -> NDArray[np.float64]:
         """(S, 4) rows t, x, y, theta: map->odom composed with the odometry at every scan."""
@@ -84,7 +107,8 @@ class OfflineResult:
         return {"scans": self.scans, "updates": self.updates, "wall_seconds": round(self.wall_seconds, 3),
                 "ms_per_update_median": float(np.median(ms)), "ms_per_update_p95": float(np.percentile(ms, 95)),
                 "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                "dropped": self.dropped, "events": self.events}
+                "dropped": self.dropped, "events": self.events,
+                **({"accuracy": self.accuracy} if self.accuracy is not None else {})}
 
 
 def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> OfflineResult:
@@ -93,9 +117,10 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
     front = Frontend(slam)
     result = OfflineResult(slam=slam)
     mount = (data.mount.x, data.mount.y, data.mount.yaw)
-    bag_span = (data.scans[-1].t - data.scans[0].t) if data.scans else 0.0
     map_to_odom = np.zeros(3)
-    start = last_print = time.perf_counter()
+    start = time.perf_counter()
+    bar = tqdm(total=len(data.scans), unit="scan", disable=not progress, file=sys.stderr, dynamic_ncols=True,
+               mininterval=0.5)
     for rec in data.records():
         try:
             if isinstance(rec, OdomRecord):
@@ -123,23 +148,14 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
             result.dropped[key] = result.dropped.get(key, 0) + 1
         result.events += [str(e) for e in front.events]
         front.events.clear()
-        now = time.perf_counter()
-        if progress and (now - last_print > 0.5 or result.scans == len(data.scans)):
-            last_print = now
-            _progress(result.scans, len(data.scans), now - start, bag_span)
+        if isinstance(rec, ScanRecord):
+            bar.update(1)
+            if progress and result.scans % 50 == 0:   # bag seconds per wall second
+                bar.set_postfix_str(f"{(rec.t - data.scans[0].t) / max(time.perf_counter() - start, 1e-9):.1f}x "
+                                    "real time", refresh=False)
+    bar.close()
     result.wall_seconds = time.perf_counter() - start
-    if progress:
-        print(file=sys.stderr)
     return result
-
-
-def _progress(done: int, total: int, wall: float, bag_span: float) -> None:
-    frac = done / max(total, 1)
-    bar = "#" * int(30 * frac)
-    rate = done / max(wall, 1e-9)
-    speedup = frac * bag_span / max(wall, 1e-9)
-    print(f"\r[{bar:<30}] {done}/{total} scans  {rate:6.1f} scans/s  {speedup:6.1f}x real time",
-          end="", file=sys.stderr, flush=True)
 
 
 def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = "xytheta") -> None:
@@ -162,8 +178,13 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     write_trajectory(out / "live_poses.txt", live[:, 0], live[:, 1:], fmt=fmt,
                      comment="live map->odom composed with the odometry, one pose per scan: the best "
                              "particle at the last processed scan composed with the odometry since")
-    write_png(out / "map.png", render_map(occ, grid.resolution, origin,
-                                          {"estimate": (traj[:, 1:3], (220, 0, 0))}, scale=2))
+    paths = {"estimate": (traj[:, 1:3], ESTIMATE_RGB)}
+    if result.reference is not None:
+        result.accuracy = _accuracy(out, result.reference, traj)
+        in_map = _reference_in_map_frame(result.reference, traj)
+        if in_map is not None:
+            paths = {"reference": (in_map[:, :2], TRUTH_RGB), **paths}
+    write_png(out / "map.png", map_picture(occ, grid.resolution, origin, paths))
     (out / "stats.json").write_text(json.dumps(result.stats(), indent=2) + "\n")
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
 
@@ -179,6 +200,47 @@ def _check_usable(data: BagData) -> None:
         raise NothingUsable(f"the bag has no odometry on {data.odom_topic}: the filter needs both")
 
 
+def _accuracy(out: Path, ref: Reference, traj: NDArray[np.float64]) -> dict[str, Any]:
+    """ATE and RPE of trajectory.txt against the reference, matched as `fastslam.evaluate`
+    matches by default; error.png beside them."""
+    s = score(ref.times, ref.poses, traj[:, 0], traj[:, 1:])
+    if s.matched == 0:
+        return {"reference": ref.source, "matched": 0,
+                "error": "no pose of trajectory.txt within 0.05 s of a reference pose"}
+    from fastslam.eval.plots import plot_errors
+
+    plot_errors(out / "error.png", ref.times, ref.poses, traj[:, 0], traj[:, 1:],
+                title=f"{out.name}/trajectory.txt against {ref.source}")
+    return {"reference": ref.source, **s.as_dict()}
+
+
+def _reference_in_map_frame(ref: Reference, traj: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """The reference moved onto the estimate by the ATE's rigid alignment (the map frame
+    is the odometry's, the reference's may be the world's); None when nothing matches."""
+    _, r, e = match_by_time(ref.times, ref.poses, traj[:, 0], traj[:, 1:])
+    if len(r) == 0:
+        return None
+    rot, shift = align_2d(r, e)
+    return apply_alignment(rot, shift, ref.poses)
+
+
+def load_reference(data: BagData, bag: str, path: str | None) -> Reference | None:
+    """--reference FILE, else the bag's /ground_truth, else None.
+
+    Raises:
+        TrajectoryError: the file cannot be read or holds no pose.
+    """
+    if path is not None:
+        times, poses = read_trajectory(path)
+        if len(times) == 0:
+            raise TrajectoryError(f"{path}: no poses")
+        return Reference(str(path), times, poses)
+    if data.reference:
+        rows = np.array([[r.t, r.x, r.y, r.yaw] for r in data.reference], dtype=np.float64)
+        return Reference(f"{Path(bag).name}:{REFERENCE_TOPIC}", rows[:, 0], rows[:, 1:])
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m fastslam.offline", description=__doc__.split("\n\n")[0])
     parser.add_argument("bag", help="ROS 1 bag with LaserScan and Odometry (and tf)")
@@ -190,7 +252,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--odom-topic", help="default: the only Odometry topic")
     parser.add_argument("--format", choices=FORMATS, default="xytheta",
                         help="trajectory files: t x y theta (default) or TUM's t x y z qx qy qz qw")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--reference", metavar="FILE",
+                        help="reference trajectory (t x y theta or TUM) for stats.json's ATE/RPE and error.png; "
+                             "default: the bag's /ground_truth, if any")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar (there is none off a terminal)")
     args = parser.parse_args(argv)
     out = Path(args.out)
     try:
@@ -200,6 +265,7 @@ def main(argv: list[str] | None = None) -> int:
         cfg = SlamConfig.from_yaml(args.config, overrides)
         with staged_folder(out) as work:   # checked before the run; filled only if it succeeds
             data = read_bag(args.bag, args.scan_topic, args.odom_topic)
+            reference = load_reference(data, args.bag, args.reference)
             _check_usable(data)
             for parent, child in data.bad_tf:
                 if not data.mount.found:
@@ -209,7 +275,8 @@ def main(argv: list[str] | None = None) -> int:
             if not data.mount.found:
                 print(f"warning: no tf from '{data.mount.base_frame}' to '{data.mount.laser_frame}' in the bag; "
                       "assuming the laser sits at the base origin", file=sys.stderr)
-            result = run_bag(data, cfg, progress=not args.quiet)
+            result = run_bag(data, cfg, progress=not args.quiet and sys.stderr.isatty())
+            result.reference = reference
             if result.updates == 0:
                 why = ", ".join(f"{k} ({n})" for k, n in result.dropped.items()) or "none was due"
                 raise NothingUsable(f"none of the bag's {result.scans} scans could be used: {why}")
@@ -217,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:  # the message without "[Errno N]"
         print(f"error: {err.strerror or err}" + (f": {err.filename}" if err.filename else ""), file=sys.stderr)
         return 2
-    except (ConfigError, BagError, NothingUsable) as err:
+    except (ConfigError, BagError, NothingUsable, TrajectoryError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -229,6 +296,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{s['scans']} scans, {s['updates']} updates in {s['wall_seconds']:.1f} s "
           f"({s['ms_per_update_median']:.1f} ms median per update), peak {s['peak_memory_mb']:.0f} MB; "
           f"dropped {sum(result.dropped.values())}; results in {args.out}")
+    acc = s.get("accuracy")
+    if acc:
+        print(f"against {acc['reference']}: " + (f"ATE {acc['ate_rmse']:.3f} m RMS, RPE {acc['rpe_trans']:.3f} m / "
+                                                   f"{acc['rpe_rot']:.2f} deg per pose ({acc['matched']} poses)"
+                                                   if acc["matched"] else acc["error"]))
     return 0
 
 

@@ -9,10 +9,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.config import SlamConfig
 from fastslam.eval.maps import run_quality, trajectory_errors
@@ -25,6 +24,10 @@ from fastslam.sim.route import load_route
 from fastslam.sim.sim import SimConfig, Simulation
 from fastslam.sim.world import World
 from fastslam.sim.world_loader import load_world
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 

@@ -1,5 +1,6 @@
 """ROS 1 bags written by fastslam.io.bag_writer and read back by fastslam.io.bag_reader:
-records, topics, and the laser mount from /tf_static and /tf."""
+records, topics, and the laser mount from /tf_static and /tf; each test with both readers
+(rosbags, and ROS's rosbag API as on ROS Noetic)."""
 from __future__ import annotations
 
 import math
@@ -9,10 +10,18 @@ import pytest
 
 from fastslam.filter.scan import Scan
 from fastslam.geometry import wrap_angle
+from fastslam.io import bag_reader
 from fastslam.io.bag_reader import read_bag
 from fastslam.io.bag_writer import BagWriter, write_bag
 from fastslam.io.records import BagError, OdomRecord, ScanRecord
 from fastslam.transforms import LaserMount, StaticTransform
+
+
+@pytest.fixture(autouse=True, params=["rosbags", pytest.param("rosbag", marks=pytest.mark.ros)])
+def reader(request, monkeypatch):
+    """Every read_bag of a test goes through this library (read_bag's default choice)."""
+    monkeypatch.setattr(bag_reader, "READERS", (request.param,))
+    return request.param
 
 
 def scans_and_odoms(rng: np.random.Generator, n: int = 5, frame: str = "laser"):
@@ -126,3 +135,20 @@ def test_laser_in_the_base_frame(tmp_path):
     mount = read_bag(write_bag(tmp_path / "b.bag", scans, odoms)).mount
     assert mount == LaserMount(laser_frame="base_link", found=True)
 
+
+def test_reference_topic_is_read_apart_from_the_odometry(tmp_path):
+    scans, odoms = scans_and_odoms(np.random.default_rng(6))
+    path = tmp_path / "gt.bag"
+    truth = [OdomRecord(o.t, o.x + 1.0, o.y - 2.0, o.yaw, child_frame_id="base_link", frame_id="world")
+             for o in odoms]
+    with BagWriter(path) as w:
+        for s, o, g in zip(scans, odoms, truth):
+            w.odom(o)
+            w.odom(g, topic="/ground_truth")     # no tf for it
+            w.scan(s)
+    data = read_bag(path)
+    assert data.odom_topic == "/odom" and len(data.reference) == 5 and len(data.odoms) == 5
+    for got, want in [*zip(data.reference, truth), *zip(data.odoms, odoms)]:
+        assert (got.t, got.x, got.y, got.frame_id) == (want.t, want.x, want.y, want.frame_id)
+        assert got.yaw == pytest.approx(want.yaw, abs=1e-12)      # through a quaternion
+    assert data.mount == LaserMount(found=False)

@@ -115,3 +115,27 @@ def test_robotlaser_mount_goes_to_tf_static(tmp_path):
     np.testing.assert_array_equal(data.scans[0].ranges, np.array([1.0, np.inf, 2.5], np.float32))
     assert data.scans[0].range_max == 20.0
     assert reference_path(tmp_path / "r.bag").is_file()
+
+
+def test_tum_trajectories_parse_back_to_the_same_numbers(tmp_path, intel):
+    """The converter's --format tum files, as evo reads them: t x y z qx qy qz qw, the same
+    stamps and positions to the last bit and the same headings through the quaternion."""
+    plain, tum = tmp_path / "plain.bag", tmp_path / "tum.bag"
+    for out, extra in ((plain, []), (tum, ["--format", "tum"])):
+        assert carmen_cli.main([str(intel), "--out", str(out), "--limit", "40", "--odom-noise", "1",
+                                "--quiet", *extra]) == 0
+    for kind in ("gt", "odom"):
+        rows = [ln.split() for ln in reference_path(tum, kind).read_text().splitlines() if not ln.startswith("#")]
+        assert len(rows) == 40 and all(len(r) == 8 and r[3:6] == ["0.0", "0.0", "0.0"] for r in rows)
+        q = np.array([[float(v) for v in r[4:]] for r in rows])
+        np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, rtol=0, atol=1e-12)   # unit quaternions
+        t0, p0 = read_trajectory(reference_path(plain, kind))
+        t1, p1 = read_trajectory(reference_path(tum, kind))
+        np.testing.assert_array_equal(t1, t0)
+        np.testing.assert_array_equal(p1[:, :2], p0[:, :2])
+        np.testing.assert_allclose(wrap_angle(p1[:, 2] - p0[:, 2]), 0.0, rtol=0, atol=1e-12)
+    # yaw from the quaternion by hand (evo's convention, w last): theta = 2 atan2(qz, qw)
+    first = [float(v) for v in next(ln for ln in reference_path(tum, "gt").read_text().splitlines()
+                                    if not ln.startswith("#")).split()]
+    assert wrap_angle(2 * math.atan2(first[6], first[7])) == pytest.approx(read_trajectory(
+        reference_path(plain, "gt"))[1][0, 2], abs=1e-12)

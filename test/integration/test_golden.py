@@ -24,6 +24,9 @@ from fastslam.config import SlamConfig
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = Path(__file__).with_name("golden.json")
 INTEL = data_path("intel-corrected.log.gz")
+# The hashes are Debian 12's (numpy 1.24): numpy 1.17's sin/cos round differently in the
+# last bit (trajectories 5e-15 m apart), so the Python 3.8 run leaves this file out.
+pytestmark = pytest.mark.pinned
 SIM_SECONDS = 60.0  # of the turtlebot3_world route: ~300 scans
 
 

@@ -2,6 +2,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
@@ -118,3 +119,70 @@ def test_tum_format(tmp_path):
         np.testing.assert_array_equal(t0, t1)
         np.testing.assert_array_equal(p0[:, :2], p1[:, :2])
         np.testing.assert_allclose(np.cos(p0[:, 2] - p1[:, 2]), 1.0, rtol=0, atol=1e-12)
+
+
+def test_reference_gives_ate_rpe_in_stats_error_png_and_the_evaluators_numbers(tmp_path, capsys):
+    import math
+
+    from PIL import Image
+
+    from fastslam import evaluate
+    from fastslam.io.bag_writer import BagWriter
+    from fastslam.io.records import OdomRecord
+    from fastslam.io.trajectory_files import write_trajectory
+
+    cfg = SlamConfig.from_yaml("config/slam.yaml", {"seed": 0, "particles": 4})
+    direct = simrun.run("room", cfg, seed=0, record=True, max_time=8.0)
+    # the truth in a world frame of its own (turned and shifted), as the simulator's /ground_truth
+    c, s = math.cos(0.8), math.sin(0.8)
+    world = [OdomRecord(t, 3.0 + c * x - s * y, -1.0 + s * x + c * y, th + 0.8, frame_id="world")
+             for t, x, y, th in direct.truth.tolist()]
+    bag = tmp_path / "gt.bag"
+    with BagWriter(bag) as w:
+        w.static([StaticTransform.planar("base_footprint", "base_scan", x=-0.032)], t=direct.truth[0, 0])
+        merged = sorted([*direct.odoms, *direct.scans], key=lambda r: r.t)
+        for rec in merged:
+            if isinstance(rec, OdomRecord):
+                w.odom(rec)
+            else:
+                w.scan(rec)
+        for g in world:
+            w.odom(g, topic="/ground_truth")
+    out = tmp_path / "out"
+    assert offline.main([str(bag), "--out", str(out), "--seed", "0", "--set", "particles=4", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    acc = json.loads((out / "stats.json").read_text())["accuracy"]
+    assert acc["reference"] == "gt.bag:/ground_truth" and acc["matched"] > 30
+    assert f"ATE {acc['ate_rmse']:.3f} m" in printed
+    assert 0 < acc["ate_rmse"] < 0.2            # the truth's own frame is aligned away
+    # the same numbers as the evaluator on the same reference written to a file (the bag's
+    # headings went through quaternions: equal to the last bits)
+    gt = tmp_path / "gt.txt"
+    write_trajectory(gt, [g.t for g in world], [[g.x, g.y, g.yaw] for g in world])
+    assert evaluate.main([str(gt), str(out / "trajectory.txt"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == pytest.approx({k: v for k, v in acc.items() if k != "reference"},
+                                                                rel=1e-9)
+    with Image.open(out / "error.png") as img:
+        assert img.format == "PNG" and img.size == (1100, 480)
+    with Image.open(out / "map.png") as img:    # the reference drawn and in the legend
+        assert np.all(np.asarray(img.convert("RGB")) == (0, 160, 0), axis=2).sum() > 60
+    # --reference FILE instead of the topic: the same figures
+    out2 = tmp_path / "out2"
+    assert offline.main([str(bag), "--out", str(out2), "--seed", "0", "--set", "particles=4", "--quiet",
+                         "--reference", str(gt)]) == 0
+    acc2 = json.loads((out2 / "stats.json").read_text())["accuracy"]
+    assert acc2.pop("reference") == str(gt) and acc2 == pytest.approx(
+        {k: v for k, v in acc.items() if k != "reference"}, rel=1e-9)
+
+
+def test_no_reference_no_accuracy_and_a_bad_reference_is_one_line(tmp_path, capsys):
+    bag = _sim_bag(tmp_path, 3.0)
+    out = tmp_path / "out"
+    assert offline.main([str(bag), "--out", str(out), "--set", "particles=2", "--seed", "0", "--quiet"]) == 0
+    assert "accuracy" not in json.loads((out / "stats.json").read_text()) and not (out / "error.png").exists()
+    capsys.readouterr()
+    assert offline.main([str(bag), "--out", str(tmp_path / "o2"), "--quiet", "--reference",
+                         str(tmp_path / "none.txt")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: cannot read trajectory") and err.count("\n") == 1
+    assert not (tmp_path / "o2").exists()

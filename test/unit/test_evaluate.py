@@ -104,3 +104,45 @@ def test_binary_files_and_bad_options_are_one_line_errors(tmp_path, capsys):
     for args, line in cases:
         assert evaluate.main(args) == 2
         assert capsys.readouterr().err.strip() == line
+
+
+def _colour_pixels(png, rgb, box):
+    from PIL import Image
+
+    with Image.open(png) as img:
+        px = np.asarray(img.convert("RGB"), dtype=np.int32)[box]
+    return int(np.sum(np.abs(px - np.array(rgb)).sum(axis=2) < 40))
+
+
+TAB_RED, TAB_GREEN = (214, 39, 40), (44, 160, 44)   # matplotlib's tab:red, tab:green
+
+
+def test_plot_draws_the_aligned_estimate_over_the_reference(tmp_path):
+    th = np.cumsum(np.random.default_rng(9).uniform(-0.3, 0.3, 200))
+    ref = np.column_stack([np.cumsum(np.cos(th)), np.cumsum(np.sin(th)), th])   # a 200 m winding path
+    t = np.arange(200) * 0.1
+    write_trajectory(tmp_path / "ref.txt", t, ref)
+    write_trajectory(tmp_path / "moved.txt", t, moved(ref, 1.2, (30.0, -8.0)))   # far away until aligned
+    bent = ref.copy()
+    bent[100:, 1] += 3.0                                                          # a 3 m step halfway
+    write_trajectory(tmp_path / "bent.txt", t, bent)
+    left = (slice(None), slice(0, 550))
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "moved.txt"), "--plot",
+                          str(tmp_path / "a.png")]) == 0
+    assert evaluate.main([str(tmp_path / "ref.txt"), str(tmp_path / "bent.txt"), "--plot",
+                          str(tmp_path / "b.png")]) == 0
+    from PIL import Image
+
+    with Image.open(tmp_path / "a.png") as img:
+        assert (img.format, img.size) == ("PNG", (1100, 480))
+    # aligned, the moved copy covers the reference: the green left in the left panel is the
+    # legend's (~60 px); the bent copy cannot cover it, so much of the reference stays visible
+    red_a, green_a = (_colour_pixels(tmp_path / "a.png", c, left) for c in (TAB_RED, TAB_GREEN))
+    green_b = _colour_pixels(tmp_path / "b.png", TAB_GREEN, left)
+    assert red_a > 500 and green_a < 0.15 * red_a and green_b > 3 * green_a
+
+
+def test_plot_is_refused_with_relations(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        evaluate.main(["--relations", "r.txt", "e.txt", "--plot", str(tmp_path / "p.png")])
+    assert "--plot" in capsys.readouterr().err and not (tmp_path / "p.png").exists()

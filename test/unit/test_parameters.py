@@ -12,11 +12,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from assign5.params import NodeConfig
+from assign5.params import NodeConfig, RelayConfig, ReportConfig
 from assign5.replay import ReplayConfig
-from assign5.run_report import ReportConfig
 from assign5.teleop_node import TeleopConfig
-from assign5.tf_relay import RelayConfig
 from fastslam.config import SlamConfig
 from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR
 from fastslam.sim.sim import SimConfig

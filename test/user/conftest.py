@@ -41,7 +41,7 @@ def readme_commands() -> list[str]:
     text = README.read_text()
     lines = []
     for block in re.findall(r"```bash\n(.*?)```", text, re.S):
-        for line in block.splitlines():
+        for line in block.replace("\\\n", " ").splitlines():   # a line continued with a backslash is one
             line = line.strip()
             if not line:
                 continue

@@ -4,13 +4,14 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.eval.trajectory import match_by_time
 from fastslam.geometry import inverse, transform_points
 from fastslam.io.map_files import OCCUPIED_MIN as OCCUPIED  # map_saver's occupied threshold [%]
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
     from fastslam.sim.world import World
 
 

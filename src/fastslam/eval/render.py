@@ -1,50 +1,50 @@
-"""A dependency-free PNG writer (zlib + struct) and a map + trajectories renderer.
+"""Pictures of maps and trajectories, drawn with Pillow.
 
-The renderer draws an OccupancyGrid (row 0 at the BOTTOM of the picture, as seen
-from above) scaled up by an integer factor, then trajectories as 1-pixel polylines.
-Lines are rasterised by sampling every segment at sub-pixel steps, all segments of a
-path at once, so there is no Python loop over pixels or segments.
+``render_map`` draws an OccupancyGrid (row 0 at the BOTTOM of the picture, as seen from
+above) scaled up by an integer factor, with trajectories as polylines on top.
+``map_picture`` is what the tools save as map.png: the map cropped to its explored part
+plus a margin, each cell a few pixels wide (or, past a pixel limit, several cells per
+pixel with occupied cells winning, so a large map shrinks instead of being cut), and a
+strip under it with a scale bar in metres and the legend of the paths.
 """
 from __future__ import annotations
 
+import math
 import os
-import struct
-import zlib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Mapping, Tuple
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from PIL import Image, ImageDraw, ImageFont
 
-from fastslam.geometry import inverse, transform_points
+from fastslam.geometry import compose, inverse, transform_points
+from fastslam.io.staging import staged
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
+
+Colour = Tuple[int, int, int]
+Paths = Mapping[str, Tuple["ArrayLike", Colour]]   # name -> ((T, 2) xy [m], (r, g, b)), drawn in order
 
 UNKNOWN_RGB = (205, 205, 205)
 FREE_RGB = (255, 255, 255)
 OCCUPIED_RGB = (0, 0, 0)
+TRUTH_RGB = (0, 160, 0)
+ESTIMATE_RGB = (220, 0, 0)
+ODOMETRY_RGB = (40, 90, 230)
+MAX_SIDE = 2000       # [px] longest side of the map in map_picture; beyond, cells are merged
+TARGET_SIDE = 800     # [px] a small map's cells are scaled up towards this size ...
+MAX_SCALE = 8         # ... by at most this many pixels per cell
+STRIP = 28            # [px] height of the scale bar and legend strip
 
 
-def _chunk(kind: bytes, data: bytes) -> bytes:
-    body = kind + data
-    return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body) & 0xFFFFFFFF)
-
-
-def encode_png(rgb: NDArray[np.uint8]) -> bytes:
-    """(H, W, 3) uint8 RGB -> PNG file bytes (8-bit truecolour, filter 0 on every row)."""
-    img = np.ascontiguousarray(rgb, dtype=np.uint8)
-    if img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError(f"rgb must be (H, W, 3), got shape {img.shape}")
-    h, w, _ = img.shape
-    # each scanline starts with its filter-type byte (0 = None)
-    raw = np.concatenate([np.zeros((h, 1), dtype=np.uint8), img.reshape(h, w * 3)], axis=1)
-    ihdr = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)  # 8 bit, colour type 2 = RGB
-    return (b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr)
-            + _chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + _chunk(b"IEND", b""))
-
-
-def write_png(path: str | os.PathLike[str], rgb: NDArray[np.uint8]) -> Path:
-    """Write (H, W, 3) uint8 RGB, row 0 = top of the picture, as a PNG file."""
+def write_png(path: str | os.PathLike[str], image: Image.Image | NDArray[np.uint8]) -> Path:
+    """Save a picture ((H, W, 3) uint8 RGB, row 0 = top, or a Pillow image) as PNG,
+    under a temporary name renamed when complete."""
     path = Path(path)
-    path.write_bytes(encode_png(rgb))
+    img = image if isinstance(image, Image.Image) else Image.fromarray(np.ascontiguousarray(image, np.uint8), "RGB")
+    with staged(path) as (tmp,):
+        img.save(tmp, format="PNG")
     return path
 
 
@@ -62,34 +62,6 @@ def map_to_rgb(occupancy: NDArray[np.integer[Any]], scale: int = 1) -> NDArray[n
     return img
 
 
-def draw_polyline(img: NDArray[np.uint8], pixels_xy: ArrayLike, color: tuple[int, int, int]) -> None:
-    """Draw a polyline in place; ``pixels_xy`` (T, 2) float are (column, row) image coords.
-
-    Every segment is sampled at half-pixel steps (one batch for all segments), so
-    consecutive samples never skip a pixel; samples outside the picture are dropped.
-    """
-    pts = np.asarray(pixels_xy, dtype=np.float64).reshape(-1, 2)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) == 0:
-        return
-    if len(pts) == 1:
-        samples = pts
-    else:
-        a, b = pts[:-1], pts[1:]
-        # n_i samples per segment (half-pixel spacing), laid out flat: memory grows
-        # with the drawn length, not with (segments x longest segment)
-        n = np.ceil(2.0 * np.max(np.abs(b - a), axis=1)).astype(np.int64) + 1
-        seg = np.repeat(np.arange(len(a)), n)
-        first = np.cumsum(n) - n
-        t = (np.arange(len(seg)) - first[seg]) / n[seg]
-        samples = np.concatenate([a[seg] + t[:, None] * (b - a)[seg], pts[-1:]])
-    cols = np.floor(samples[:, 0]).astype(np.int64)
-    rows = np.floor(samples[:, 1]).astype(np.int64)
-    h, w = img.shape[:2]
-    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    img[rows[inside], cols[inside]] = color
-
-
 def world_to_pixels(xy: ArrayLike, shape: tuple[int, ...], resolution: float,
                     origin: tuple[float, float, float], scale: int) -> NDArray[np.float64]:
     """(T, 2) map-frame points -> (T, 2) (column, row) coords in a picture of grid ``shape``."""
@@ -99,9 +71,26 @@ def world_to_pixels(xy: ArrayLike, shape: tuple[int, ...], resolution: float,
     return np.stack([gx * scale, (shape[0] - gy) * scale], axis=1)
 
 
+def draw_path(draw: ImageDraw.ImageDraw, pixels_xy: ArrayLike, colour: Colour, width: int = 1) -> None:
+    """A polyline through (T, 2) (column, row) picture coordinates; a point that is not
+    finite breaks the line in two."""
+    pts = np.asarray(pixels_xy, dtype=np.float64).reshape(-1, 2)
+    # pixel (c, r) covers [c, c + 1) x [r, r + 1); the clip keeps far points in C's int range
+    cells = np.floor(np.clip(pts, -1e6, 1e6))
+    finite = np.all(np.isfinite(pts), axis=1)
+    breaks = np.flatnonzero(np.diff(finite.astype(np.int8)) != 0) + 1
+    for run in np.split(np.arange(len(pts)), breaks):
+        if len(run) == 0 or not finite[run[0]]:
+            continue
+        xy = [(int(c), int(r)) for c, r in cells[run]]
+        if len(xy) == 1:
+            draw.point(xy, fill=colour)
+        else:
+            draw.line(xy, fill=colour, width=width)
+
+
 def render_map(occupancy: NDArray[np.integer[Any]], resolution: float, origin: tuple[float, float, float],
-               paths: dict[str, tuple[ArrayLike, tuple[int, int, int]]] | None = None, *,
-               scale: int = 1) -> NDArray[np.uint8]:
+               paths: Paths | None = None, *, scale: int = 1, width: int = 1) -> NDArray[np.uint8]:
     """Grey map with coloured trajectories.
 
     Args:
@@ -109,13 +98,99 @@ def render_map(occupancy: NDArray[np.integer[Any]], resolution: float, origin: t
         resolution: cell size [m]; origin: (x, y, yaw) of cell (0, 0)'s corner.
         paths: name -> ((T, 2) xy in the map frame [m], (r, g, b)); drawn in dict order.
         scale: integer up-sampling of each cell, so thin paths stay visible.
+        width: line width of the paths [px].
 
     Returns:
         (H*scale, W*scale, 3) uint8 RGB, row 0 = top of the picture.
     """
     scale = max(1, int(scale))
-    img = map_to_rgb(occupancy, scale)
-    for xy, color in (paths or {}).values():
-        draw_polyline(img, world_to_pixels(xy, np.asarray(occupancy).shape,
-                                           resolution, origin, scale), color)
-    return img
+    img = Image.fromarray(map_to_rgb(occupancy, scale), "RGB")
+    draw = ImageDraw.Draw(img)
+    shape = np.asarray(occupancy).shape
+    for xy, colour in (paths or {}).values():
+        draw_path(draw, world_to_pixels(xy, shape, resolution, origin, scale), colour, width)
+    return np.asarray(img).copy()
+
+
+def explored_box(occupancy: NDArray[np.integer[Any]], margin: int) -> tuple[int, int, int, int]:
+    """(row0, row1, col0, col1), the rows and columns holding known cells, widened by
+    ``margin`` cells and kept inside the grid; the whole grid when nothing is known."""
+    known = np.asarray(occupancy) >= 0
+    h, w = known.shape
+    rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
+    if len(rows) == 0:
+        return 0, h, 0, w
+    return (max(rows[0] - margin, 0), min(rows[-1] + 1 + margin, h),
+            max(cols[0] - margin, 0), min(cols[-1] + 1 + margin, w))
+
+
+def merge_cells(occupancy: NDArray[np.integer[Any]], k: int) -> NDArray[np.int8]:
+    """Blocks of k x k cells -> one cell holding the block's highest value: occupied
+    over free over unknown, so a wall one cell thick survives the shrinking."""
+    occ = np.asarray(occupancy, dtype=np.int8)
+    h, w = occ.shape
+    padded = np.full((-(-h // k) * k, -(-w // k) * k), -1, dtype=np.int8)
+    padded[:h, :w] = occ
+    return padded.reshape(padded.shape[0] // k, k, padded.shape[1] // k, k).max(axis=(1, 3))
+
+
+def nice_length(metres: float) -> float:
+    """The largest 1, 2 or 5 x 10^k not above ``metres`` (> 0)."""
+    power = 10.0 ** math.floor(math.log10(metres))
+    return max(m * power for m in (1.0, 2.0, 5.0) if m * power <= metres + 1e-12)
+
+
+def _text_width(draw: ImageDraw.ImageDraw, text: str, font: Any) -> int:
+    if hasattr(draw, "textbbox"):                            # Pillow >= 8
+        left, _, right, _ = draw.textbbox((0, 0), text, font=font)
+        return int(right - left)
+    return int(draw.textsize(text, font=font)[0])  # type: ignore[attr-defined]  # Pillow 7 (Ubuntu 20.04)
+
+
+def map_picture(occupancy: NDArray[np.integer[Any]], resolution: float, origin: tuple[float, float, float],
+                paths: Paths | None = None, *, margin: float = 1.0, max_side: int = MAX_SIDE) -> Image.Image:
+    """The map as the tools save it (map.png): cropped to the known cells plus ``margin``
+    [m], scaled so that a cell is visible, or shrunk past ``max_side`` pixels; under it a
+    white strip with a scale bar in metres and the paths' legend.
+
+    Args: as :func:`render_map`; paths are also drawn where they leave the known area.
+    """
+    occ = np.asarray(occupancy)
+    r0, r1, c0, c1 = explored_box(occ, int(math.ceil(margin / resolution)))
+    occ = occ[r0:r1, c0:c1]
+    origin = tuple(compose(np.asarray(origin, dtype=np.float64), np.array([c0 * resolution, r0 * resolution, 0.0])))
+    cells = max(occ.shape)
+    if cells > max_side:
+        k = -(-cells // max_side)
+        occ, resolution, scale = merge_cells(occ, k), resolution * k, 1
+    else:
+        scale = int(min(MAX_SCALE, max(1, TARGET_SIDE // cells)))
+    rgb = render_map(occ, resolution, (origin[0], origin[1], origin[2]), paths, scale=scale,
+                     width=2 if scale >= 3 or occ.shape[1] * scale >= 600 else 1)
+    return _with_strip(rgb, resolution / scale, paths or {})
+
+
+def _with_strip(rgb: NDArray[np.uint8], metres_per_pixel: float, paths: Paths) -> Image.Image:
+    font = ImageFont.load_default()
+    probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    h, w = rgb.shape[:2]
+    bar_m = nice_length(max(w / 4, 1) * metres_per_pixel)
+    bar_px = max(1, int(round(bar_m / metres_per_pixel)))
+    label = f"{bar_m:g} m"
+    legend = [(name, colour, _text_width(probe, name, font)) for name, (_, colour) in paths.items()]
+    needed = 10 + bar_px + 6 + _text_width(probe, label, font) + sum(40 + tw for _, _, tw in legend) + 10
+    canvas = Image.new("RGB", (max(w, needed), h + STRIP), FREE_RGB)
+    canvas.paste(Image.fromarray(rgb, "RGB"), (0, 0))
+    draw = ImageDraw.Draw(canvas)
+    y = h + STRIP // 2
+    draw.rectangle((10, y - 1, 10 + bar_px - 1, y + 1), fill=OCCUPIED_RGB)       # the bar, 3 px thick
+    draw.rectangle((10, y - 5, 10, y + 5), fill=OCCUPIED_RGB)                    # its end ticks
+    draw.rectangle((10 + bar_px - 1, y - 5, 10 + bar_px - 1, y + 5), fill=OCCUPIED_RGB)
+    x = 10 + bar_px + 6
+    draw.text((x, y - 6), label, fill=OCCUPIED_RGB, font=font)
+    x += _text_width(probe, label, font) + 20
+    for name, colour, tw in legend:
+        draw.rectangle((x, y - 1, x + 15, y + 1), fill=colour)
+        draw.text((x + 20, y - 6), name, fill=OCCUPIED_RGB, font=font)
+        x += 40 + tw
+    return canvas

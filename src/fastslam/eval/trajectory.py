@@ -17,11 +17,14 @@ All poses are (N, 3) float64 (x, y, theta) [m, m, rad].
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import compose, inverse, relative, wrap_angle
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 def match_by_time(ref_t: ArrayLike, ref: ArrayLike, est_t: ArrayLike, est: ArrayLike, *,

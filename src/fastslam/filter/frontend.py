@@ -10,14 +10,16 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Union
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.filter.odom_buffer import OdomBuffer
 from fastslam.filter.scan import Scan, fov_problem
 from fastslam.filter.slam import FastSlam, StepInfo
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 class Dropped(ValueError):

@@ -9,10 +9,13 @@ limits set the scale, so l_min..l_max always fit in -127..127.
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
+
 
 LOGODDS_DTYPE = np.int8
 QMAX = 127

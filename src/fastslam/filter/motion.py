@@ -1,12 +1,14 @@
 """Motion update of all particles at once (assignment 3.2, and a robot-frame option)."""
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import wrap_angle
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 def odometry_step(prev_odom: NDArray[np.float64], odom: NDArray[np.float64]) -> tuple[float, float]:

@@ -2,11 +2,15 @@
 from __future__ import annotations
 
 from collections import deque
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.geometry import wrap_angle
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 # Samples kept at most, whatever their stamps: a driver whose stamps freeze would
 # otherwise grow the buffer without end (10 s of odometry at 1 kHz fit).

@@ -10,14 +10,17 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.filter.grid import GridMaps, LogOddsSteps
 from fastslam.filter.scan import Beams
 from fastslam.filter.scratch import scratch
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.

@@ -1,8 +1,12 @@
 """Low-variance resampling (Probabilistic Robotics, table 4.4) and its bookkeeping."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from numpy.typing import NDArray
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 def low_variance_indices(weights: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.intp]:

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.config import SlamConfig
 from fastslam.filter import raycast
@@ -23,6 +23,10 @@ from fastslam.filter.scan import Beams, Scan, returns_subset, select_beams
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 # Likelihood weights need no expected ranges, so the map update traces each beam only
 # about as far as it reaches, in this many groups of beams of similar length.

@@ -3,13 +3,16 @@ both as log-weights so that weights can carry over between updates without under
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points
 from fastslam.geometry import transform_points
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 def assignment_log_weights(expected: NDArray[np.float64], measured: NDArray[np.float64],

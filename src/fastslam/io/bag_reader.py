@@ -1,7 +1,10 @@
-"""ROS 1 bags without ROS: read scans, odometry and the laser mounting.
+"""ROS 1 bags, with or without ROS: read scans, odometry, a reference trajectory and
+the laser mounting.
 
-Uses ``rosbags`` (pure Python), imported lazily so that the rest of ``fastslam``
-works without it. Times are header stamps in seconds (float); poses are 2D.
+Two readers give the same records: ``rosbags`` (pure Python, Python 3.8+; 0.10+ needs
+3.10) where it is installed, else ROS's own ``rosbag`` Python API (ROS Noetic, Debian's
+python3-rosbag). Both are imported lazily, so the rest of ``fastslam`` works without
+them. Times are header stamps in seconds (float); poses are 2D.
 """
 from __future__ import annotations
 
@@ -10,21 +13,27 @@ import os
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import TYPE_CHECKING, Any, Iterable, Iterator, Tuple
 
 import numpy as np
-from numpy.typing import NDArray
 
-from fastslam.io.records import ROSBAGS_HINT, BagError, OdomRecord, ScanRecord
+from fastslam.io.records import BAG_LIBRARY_HINT, BagError, OdomRecord, ScanRecord
 from fastslam.transforms import LaserMount, mount_from_matrix, transform_matrix
 
-__all__ = ["BagData", "BagError", "OdomRecord", "ScanRecord", "laser_mount", "read_bag"]
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
+
+__all__ = ["READERS", "BagData", "BagError", "OdomRecord", "ScanRecord", "laser_mount", "read_bag"]
 
 log = logging.getLogger(__name__)
 
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
+REFERENCE_TOPIC = "/ground_truth"   # the simulator's true pose (nav_msgs/Odometry), recorded by burger.launch
+READERS = ("rosbags", "rosbag")
+Message = Tuple[str, str, Any]      # topic, type (rosbags' spelling: pkg/msg/Name), message
 
 
 @dataclass
@@ -37,6 +46,8 @@ class BagData:
     scan_topic: str
     odom_topic: str
     topics: dict[str, str] = field(default_factory=dict)  # topic -> message type
+    reference: list[OdomRecord] = field(default_factory=list)  # REFERENCE_TOPIC's poses, if the bag has it
+    reader: str = ""                                         # the library that read it (READERS)
     bad_tf: list[tuple[str, str]] = field(default_factory=list)  # (parent, child) seen only with a zero quaternion
 
     def records(self) -> Iterator[ScanRecord | OdomRecord]:
@@ -56,17 +67,60 @@ class BagData:
         return np.array([[o.t, o.x, o.y, o.yaw] for o in self.odoms], dtype=np.float64).reshape(-1, 4)
 
 
-def _rosbags() -> tuple[Any, Any, Any]:
-    try:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-    except ImportError as err:  # pragma: no cover - depends on the installation
-        raise BagError(ROSBAGS_HINT) from err
-    return AnyReader, Stores, get_typestore
-
-
 def _stamp(header: Any) -> float:
-    return float(header.stamp.sec) + 1e-9 * float(header.stamp.nanosec)
+    stamp = header.stamp
+    if hasattr(stamp, "nanosec"):   # rosbags
+        return float(stamp.sec) + 1e-9 * float(stamp.nanosec)
+    return float(stamp.secs) + 1e-9 * float(stamp.nsecs)   # rosbag (genpy)
+
+
+def pick_reader(wanted: str | None = None) -> str:
+    """The bag library to use: ``wanted``, or the first of READERS that imports."""
+    for name in [wanted] if wanted else READERS:
+        try:
+            __import__(name)
+        except ImportError:
+            continue
+        return name
+    raise BagError(f"{wanted} is not installed" if wanted else BAG_LIBRARY_HINT)
+
+
+def _rosbags_messages(path: Path, choose: Any) -> Iterator[Message]:
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS1_NOETIC)) as reader:
+            wanted = choose({c.topic: c.msgtype for c in reader.connections})
+            conns = [c for c in reader.connections if c.topic in wanted]
+            for conn, _, raw in reader.messages(connections=conns):
+                yield conn.topic, conn.msgtype, reader.deserialize(raw, conn.msgtype)
+    except AnyReaderError as err:
+        raise BagError(f"cannot read bag {path}: {err}") from err
+    except BagError:
+        raise
+    except Exception as err:  # rosbags on what is not a ROS 1 bag (random bytes, MCAP, ROS 2)
+        raise BagError(f"{path} is not a readable ROS 1 bag ({type(err).__name__}: {err}); "
+                       "ROS 2 and MCAP bags are not supported") from None
+
+
+def _rosbag_messages(path: Path, choose: Any) -> Iterator[Message]:
+    import rosbag
+
+    try:
+        with rosbag.Bag(str(path)) as bag:
+            # ROS spells types pkg/Name; rosbags (and this module) pkg/msg/Name
+            types = {t: v.msg_type.replace("/", "/msg/", 1) for t, v in bag.get_type_and_topic_info().topics.items()}
+            wanted = choose(types)
+            for topic, msg, _ in bag.read_messages(topics=sorted(wanted)):
+                yield topic, types[topic], msg
+    except (rosbag.ROSBagException, OSError, ValueError) as err:
+        raise BagError(f"cannot read bag {path}: {err}") from err
+    except BagError:
+        raise
+    except Exception as err:  # rosbag on what is not a ROS 1 bag
+        raise BagError(f"{path} is not a readable ROS 1 bag ({type(err).__name__}: {err}); "
+                       "ROS 2 and MCAP bags are not supported") from None
 
 
 CONVENTIONAL = {SCAN_TYPE: "/scan", ODOM_TYPE: "/odom"}
@@ -91,69 +145,75 @@ def _pick(topics: dict[str, str], msgtype: str, wanted: str | None, what: str) -
 
 
 def read_bag(path: str | os.PathLike[str], scan_topic: str | None = None,
-             odom_topic: str | None = None) -> BagData:
-    """Read scans, odometry and the laser mounting from a ROS 1 bag.
+             odom_topic: str | None = None, *, reader: str | None = None) -> BagData:
+    """Read scans, odometry, the reference (REFERENCE_TOPIC) and the laser mounting of a ROS 1 bag.
 
     Args:
         path: the ``.bag`` file.
         scan_topic, odom_topic: None = the only LaserScan / Odometry topic in the bag.
+        reader: "rosbags" or "rosbag"; None = the first installed (see :func:`pick_reader`).
 
     Raises:
-        BagError: unreadable bag, or the topics are missing or ambiguous (the message
-            lists every topic and its type).
+        BagError: no bag library, unreadable bag, or the topics are missing or ambiguous
+            (the message lists every topic and its type).
     """
-    AnyReader, Stores, get_typestore = _rosbags()
-    from rosbags.highlevel import AnyReaderError
-
+    reader = pick_reader(reader)
     path = Path(path)
     if not path.is_file():
         raise BagError(f"no bag at {path}")
+    topics: dict[str, str] = {}
+    chosen: list[str] = []
+
+    def choose(found: dict[str, str]) -> set[str]:
+        topics.update(found)
+        chosen.append(_pick(found, SCAN_TYPE, scan_topic, "scan"))
+        chosen.append(_pick(found, ODOM_TYPE, odom_topic, "odometry"))
+        reference = [REFERENCE_TOPIC] if found.get(REFERENCE_TOPIC) == ODOM_TYPE else []
+        return {*chosen, *reference, "/tf", "/tf_static"}
+
+    messages = _rosbags_messages if reader == "rosbags" else _rosbag_messages
+    data = _collect(messages(path, choose), choose_result=chosen)
+    return BagData(scans=data[0], odoms=data[1], mount=data[3], scan_topic=chosen[0], odom_topic=chosen[1],
+                   topics=topics, reference=data[2], reader=reader, bad_tf=data[4])
+
+
+def _collect(messages: Iterable[Message], choose_result: list[str]
+             ) -> tuple[list[ScanRecord], list[OdomRecord], list[OdomRecord], LaserMount, list[tuple[str, str]]]:
+    """Records from (topic, type, message) in bag order, each list then sorted by stamp."""
     scans: list[ScanRecord] = []
     odoms: list[OdomRecord] = []
+    reference: list[OdomRecord] = []
     static_edges: dict[tuple[str, str], NDArray[np.float64]] = {}
     dynamic_edges: dict[tuple[str, str], NDArray[np.float64]] = {}
     bad_tf: set[tuple[str, str]] = set()
-    try:
-        with AnyReader([path], default_typestore=get_typestore(Stores.ROS1_NOETIC)) as reader:
-            topics = {c.topic: c.msgtype for c in reader.connections}
-            scan_topic = _pick(topics, SCAN_TYPE, scan_topic, "scan")
-            odom_topic = _pick(topics, ODOM_TYPE, odom_topic, "odometry")
-            wanted = {scan_topic, odom_topic, "/tf", "/tf_static"}
-            conns = [c for c in reader.connections if c.topic in wanted]
-            for conn, _, raw in reader.messages(connections=conns):
-                msg = reader.deserialize(raw, conn.msgtype)
-                if conn.topic == scan_topic:
-                    scans.append(_scan_record(msg))
-                elif conn.topic == odom_topic:
-                    odoms.append(_odom_record(msg))
-                elif conn.msgtype == TF_TYPE:
-                    edges = static_edges if conn.topic == "/tf_static" else dynamic_edges
-                    for tf in msg.transforms:
-                        key = (tf.header.frame_id, tf.child_frame_id)
-                        if key in edges:
-                            continue
-                        try:
-                            edges[key] = _tf_matrix(tf.transform)
-                        except ValueError:  # a zero quaternion: the edge is unusable, not the bag
-                            bad_tf.add(key)
-    except AnyReaderError as err:
-        raise BagError(f"cannot read bag {path}: {err}") from err
-    except BagError:
-        raise
-    except Exception as err:  # rosbags on what is not a ROS 1 bag (random bytes, MCAP, ROS 2)
-        raise BagError(f"{path} is not a readable ROS 1 bag ({type(err).__name__}: {err}); "
-                       "ROS 2 and MCAP bags are not supported") from None
+    for topic, msgtype, msg in messages:
+        scan_topic, odom_topic = choose_result
+        if topic == scan_topic:
+            scans.append(_scan_record(msg))
+        elif topic == odom_topic:
+            odoms.append(_odom_record(msg))
+        elif topic == REFERENCE_TOPIC and msgtype == ODOM_TYPE:
+            reference.append(_odom_record(msg))
+        elif msgtype == TF_TYPE:
+            edges = static_edges if topic == "/tf_static" else dynamic_edges
+            for tf in msg.transforms:
+                key = (tf.header.frame_id, tf.child_frame_id)
+                if key in edges:
+                    continue
+                try:
+                    edges[key] = _tf_matrix(tf.transform)
+                except ValueError:  # a zero quaternion: the edge is unusable, not the bag
+                    bad_tf.add(key)
     scans.sort(key=lambda s: s.t)
     odoms.sort(key=lambda o: o.t)
+    reference.sort(key=lambda o: o.t)
     base = odoms[0].child_frame_id if odoms else "base_link"
     laser = scans[0].frame_id if scans else "laser"
     odom_frame = odoms[0].frame_id if odoms else "odom"
     # the odometry edge itself is dynamic and must not be part of the mounting chain
     edges = {k: v for k, v in dynamic_edges.items() if k[1] != base and k != (odom_frame, base)}
     edges.update(static_edges)
-    return BagData(scans=scans, odoms=odoms, mount=laser_mount(edges, base, laser),
-                   scan_topic=scan_topic, odom_topic=odom_topic, topics=topics,
-                   bad_tf=sorted(bad_tf - set(edges)))
+    return scans, odoms, reference, laser_mount(edges, base, laser), sorted(bad_tf - set(edges))
 
 
 def _scan_record(msg: Any) -> ScanRecord:

@@ -104,8 +104,9 @@ class BagWriter:
         self._seq["scan"] += 1
         self._write(topic or self._topics[0], rec.t, msg, "sensor_msgs/msg/LaserScan")
 
-    def odom(self, rec: OdomRecord) -> None:
-        """One nav_msgs/Odometry (zero twist and covariances) and its /tf broadcast."""
+    def odom(self, rec: OdomRecord, topic: str | None = None) -> None:
+        """One nav_msgs/Odometry (zero twist and covariances) and its /tf broadcast; on
+        another ``topic`` than the odometry's (e.g. /ground_truth), no /tf."""
         T = self.t
         q = (0.0, 0.0, math.sin(rec.yaw / 2), math.cos(rec.yaw / 2))
         pose = T["geometry_msgs/msg/Pose"](
@@ -118,8 +119,8 @@ class BagWriter:
             twist=T["geometry_msgs/msg/TwistWithCovariance"](
                 twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)))
         self._seq["odom"] += 1
-        self._write(self._topics[1], rec.t, msg, "nav_msgs/msg/Odometry")
-        if self.publish_tf:
+        self._write(topic or self._topics[1], rec.t, msg, "nav_msgs/msg/Odometry")
+        if self.publish_tf and topic in (None, self._topics[1]):
             tf = T["tf2_msgs/msg/TFMessage"](transforms=[
                 self._transform(rec.t, rec.frame_id, rec.child_frame_id, (rec.x, rec.y, 0.0), q)])
             self._write("/tf", rec.t, tf, "tf2_msgs/msg/TFMessage")

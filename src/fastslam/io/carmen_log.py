@@ -25,12 +25,15 @@ import os
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO, TYPE_CHECKING, Iterator
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.geometry import relative
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 FLASER_MAX_RANGE = 81.83  # [m] SICK LMS "no return" reading in CARMEN logs
 

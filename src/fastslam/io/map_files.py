@@ -1,4 +1,6 @@
 """map_server map files: a binary P5 PGM plus a YAML description, written atomically.
+Images go through Pillow: any image map_server's loader takes (PGM of any maxval, PNG,
+...) reads, and the PGM written is Pillow's.
 
 Pixel convention (map_saver's defaults, trinary mode): free cells (0..25) are 254,
 occupied cells (>= 65) are 0, everything else (unknown -1 and the uncertain middle)
@@ -7,15 +9,21 @@ bottom, at ``origin``), so the PGM looks like the map seen from above.
 """
 from __future__ import annotations
 
+import io
 import os
+import re
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-from numpy.typing import NDArray
+from PIL import Image, PpmImagePlugin
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 FREE_PIXEL = 254
 OCCUPIED_PIXEL = 0
@@ -122,7 +130,7 @@ def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.in
         with _SAVE_LOCK:  # one versioned save at a time: each removes the image before it
             return _save_versioned(yaml_path, occ, resolution, origin, occupied_thresh, free_thresh)
     meta = _meta(pgm_path.name, resolution, origin, occupied_thresh, free_thresh)
-    _atomic_write_all([(pgm_path, _pgm_bytes(occ, resolution)), (yaml_path, _yaml_bytes(meta))])
+    _atomic_write_all([(pgm_path, _pgm_bytes(occ)), (yaml_path, _yaml_bytes(meta))])
     return pgm_path, yaml_path
 
 
@@ -130,10 +138,11 @@ _SAVE_LOCK = threading.Lock()
 VERSIONED = ".saved-"  # versioned images: <stem>.saved-<random>.pgm
 
 
-def _pgm_bytes(occ: NDArray[np.integer[Any]], resolution: float) -> bytes:
-    h, w = occ.shape
-    header = f"P5\n# CREATOR: fastslam.io.map_files {resolution:.3f} m/pix\n{w} {h}\n255\n".encode("ascii")
-    return header + occupancy_to_pixels(occ).tobytes()
+def _pgm_bytes(occ: NDArray[np.integer[Any]]) -> bytes:
+    """A binary P5 PGM, maxval 255, as map_saver writes."""
+    buf = io.BytesIO()
+    Image.fromarray(occupancy_to_pixels(occ), mode="L").save(buf, format="PPM")
+    return buf.getvalue()
 
 
 def _yaml_bytes(meta: dict[str, Any]) -> bytes:
@@ -170,7 +179,7 @@ def _save_versioned(yaml_path: Path, occ: NDArray[np.integer[Any]], resolution: 
         raise MapSaveError(f"cannot write map file in {yaml_path.parent}: {err.strerror or err}") from err
     pgm_path = Path(name)
     try:
-        _atomic_write_all([(pgm_path, _pgm_bytes(occ, resolution))])
+        _atomic_write_all([(pgm_path, _pgm_bytes(occ))])
         meta = _meta(pgm_path.name, resolution, origin, occupied_thresh, free_thresh)
         _atomic_write_all([(yaml_path, _yaml_bytes(meta))])   # the moment the new map is the map
     except BaseException:
@@ -195,42 +204,45 @@ def remove_stale(path_stem_or_yaml: str | os.PathLike[str]) -> list[Path]:
     return stale
 
 
-def read_pgm(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
-    """Binary P5 PGM (maxval <= 255) -> (H, W) uint8, row 0 = top row of the image."""
-    raw = Path(path).read_bytes()
-    if raw[:2] != b"P5":
-        raise MapLoadError(f"{path} is not a binary (P5) PGM")
-    fields: list[int] = []
-    pos = 2
-    while len(fields) < 3:
-        if pos >= len(raw):
-            raise MapLoadError(f"{path}: truncated PGM header")
-        ch = raw[pos:pos + 1]
-        if ch == b"#":                # comments run to the end of the line
-            pos = raw.index(b"\n", pos) + 1
-        elif ch.isspace():
-            pos += 1
-        else:
-            end = pos
-            while raw[end:end + 1].isdigit():
-                end += 1
-            if end == pos:
-                raise MapLoadError(f"{path}: malformed PGM header")
-            fields.append(int(raw[pos:end]))
-            pos = end
-    w, h, maxval = fields
-    if maxval > 255:
-        raise MapLoadError(f"{path}: 16-bit PGM (maxval {maxval}) not supported")
-    pos += 1                          # exactly one whitespace byte before the pixels
-    if len(raw) - pos < w * h:
-        raise MapLoadError(f"{path}: {len(raw) - pos} bytes of pixels, expected {w * h}")
-    return np.frombuffer(raw, dtype=np.uint8, count=w * h, offset=pos).reshape(h, w).copy()
+# Pillow 9.2+ scales PGM pixels of any maxval to 0..255 (0..65535 above 255); Pillow 7
+# (Ubuntu 20.04) gives them raw, so the maxval is then read from the header.
+_PGM_SCALED = hasattr(PpmImagePlugin, "PpmDecoder")
+_PNM_MAXVAL = re.compile(rb"P[25](?:\s|#[^\n]*\n)+\d+(?:\s|#[^\n]*\n)+\d+(?:\s|#[^\n]*\n)+(\d+)")
+
+
+def read_image(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], int]:
+    """Any image map_server loads (PGM of any maxval, PNG, BMP, ...) as map_server sees it.
+
+    Returns:
+        ((H, W) float64 values, the mean of the colour channels without alpha, row 0 =
+        top row of the image; the value of white: 255, or 65535 for 16-bit images).
+
+    Raises:
+        MapLoadError: missing, unreadable or unknown image.
+    """
+    try:
+        with Image.open(Path(path)) as img:
+            img.load()
+            if img.mode in ("1", "P", "PA", "CMYK", "YCbCr", "LAB", "HSV"):
+                img = img.convert("RGBA" if img.mode in ("P", "PA") else "RGB")
+            values = np.asarray(img, dtype=np.float64)
+            white = 255 if img.mode in ("L", "LA", "RGB", "RGBA", "RGBX") else 65535
+            if img.format == "PPM" and not _PGM_SCALED:
+                head = Path(path).read_bytes()[:1024]
+                found = _PNM_MAXVAL.match(head)
+                white = int(found.group(1)) if found else white
+    except (OSError, ValueError, SyntaxError) as err:
+        raise MapLoadError(f"cannot read image {path}: {err}") from err
+    if values.ndim == 3:   # colour: map_server averages the channels, alpha left out
+        colours = values.shape[2] - 1 if values.shape[2] in (2, 4) else values.shape[2]
+        values = values[:, :, :colours].mean(axis=2)
+    return values, white
 
 
 def load_map(yaml_path: str | os.PathLike[str]) -> tuple[NDArray[np.int8], float, tuple[float, float, float]]:
     """Read a map_server YAML + image with the trinary rule.
 
-    p = (255 - v) / 255 (or v / 255 with ``negate``); p > occupied_thresh -> 100,
+    p = (white - v) / white (or v / white with ``negate``); p > occupied_thresh -> 100,
     p < free_thresh -> 0, else -1.
 
     Returns:
@@ -245,17 +257,19 @@ def load_map(yaml_path: str | os.PathLike[str]) -> tuple[NDArray[np.int8], float
         occ_t = float(meta.get("occupied_thresh", OCCUPIED_THRESH))
         free_t = float(meta.get("free_thresh", FREE_THRESH))
         negate = bool(int(meta.get("negate", 0)))
-        pixels = read_pgm(image)
+        pixels, white = read_image(image)
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
         raise MapLoadError(f"cannot load map {yaml_path}: {err}") from err
-    occ = trinary(pixels, negate=negate, occupied_thresh=occ_t, free_thresh=free_t)
+    occ = trinary(pixels, negate=negate, occupied_thresh=occ_t, free_thresh=free_t, maxval=white)
     return occ[::-1].copy(), resolution, (ox, oy, oyaw)
 
 
-def trinary(pixels: NDArray[np.integer[Any]], *, negate: bool, occupied_thresh: float = OCCUPIED_THRESH,
-            free_thresh: float = FREE_THRESH, maxval: int = 255) -> NDArray[np.int8]:
+def trinary(pixels: NDArray[np.floating[Any]] | NDArray[np.integer[Any]], *, negate: bool,
+            occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH,
+            maxval: int = 255) -> NDArray[np.int8]:
     """map_server's trinary rule, pixel by pixel: p = (maxval - v) / maxval (v / maxval with
-    negate); p > occupied_thresh -> 100, p < free_thresh -> 0, else -1 (unknown)."""
+    negate); p > occupied_thresh -> 100, p < free_thresh -> 0, else -1 (unknown). ``maxval``
+    is the value of white (see :func:`read_image`)."""
     v = pixels.astype(np.float64)
     p = v / maxval if negate else (maxval - v) / maxval
     occ = np.full(pixels.shape, -1, dtype=np.int8)

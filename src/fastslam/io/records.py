@@ -2,13 +2,17 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
-ROSBAGS_HINT = ("reading/writing bags needs the Python package rosbags>=0.10, which Debian does not ship: "
-                "run the tool with the .venv that `make setup` makes (.venv/bin/python -m ...), or install it "
-                "for /usr/bin/python3: pip3 install --user --break-system-packages 'rosbags>=0.10'")
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
+
+BAG_LIBRARY_HINT = ("reading bags needs ROS's rosbag (Debian/Ubuntu: apt-get install python3-rosbag, "
+                    "or source ROS Noetic) or rosbags (pip install rosbags)")
+ROSBAGS_HINT = "writing bags needs rosbags: pip install rosbags (Python 3.8/3.9: 'rosbags==0.9.23')"
 
 
 class BagError(RuntimeError):

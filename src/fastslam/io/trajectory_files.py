@@ -6,11 +6,14 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import yaw_from_quaternion
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 class TrajectoryError(ValueError):

@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
@@ -35,6 +35,10 @@ from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
 from fastslam.match.refine import hill_climb, icp, surface_normals
 from fastslam.match.search import POOL, grid_search, pick, pool_occupied, search_area, window
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 MIN_BEAMS = 10         # fewer returns than this: nothing to match
 # The motion prior never gets narrower than this: odometry of a standing robot still

@@ -3,12 +3,17 @@ evidence (gmapping's optimiser), or Gauss-Newton steps pulling each end point on
 occupied cells along the scan's surface normals (ICP), with the odometry prior."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams
 from fastslam.geometry import cos_sin, solve3, transform_points, wrap_angle
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 FINE_ITERATIONS = 6    # hill-climbing steps (a step halves when no neighbour improves)
 ICP_ITERATIONS = 3

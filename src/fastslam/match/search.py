@@ -10,13 +10,17 @@ once per update, only in the window the scans of all particles can reach.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scratch import scratch
 from fastslam.geometry import cos_sin, transform_points, wrap_angle
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
 
 POOL = 4               # coarse level: cells per side of a pooled cell
 SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further

@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import compose
 from fastslam.sim.world import World
 
-Array = NDArray[np.float64]
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
+    Array = NDArray[np.float64]
 
 
 def ray_segments(origin: ArrayLike, dirs: ArrayLike, segments: ArrayLike) -> Array:

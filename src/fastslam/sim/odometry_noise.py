@@ -26,13 +26,15 @@ Level 1 on the whole Intel log: dead-reckoning ATE 12-15 m (seeds 0-2), RPE ~0.1
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.filter.motion import step_sigmas
 from fastslam.geometry import wrap_angle
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 class OdomNoise(NamedTuple):

@@ -7,14 +7,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import compose, relative, wrap_angle
 from fastslam.sim.world import World
 
-Array = NDArray[np.float64]
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
+    Array = NDArray[np.float64]
+
 
 MAX_LINEAR = 0.22    # [m/s] burger limit (turtlebot3_teleop_key, e-manual)
 MAX_ANGULAR = 2.84   # [rad/s]

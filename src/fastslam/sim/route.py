@@ -9,15 +9,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-from numpy.typing import ArrayLike, NDArray
 
 from fastslam.geometry import wrap_angle
 from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR
 from fastslam.sim.world import WorldError
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import ArrayLike, NDArray
 
 
 def parse_route(data: Any, where: str = "route") -> NDArray[np.float64]:

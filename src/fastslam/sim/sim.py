@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
-from numpy.typing import NDArray
 
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
@@ -23,6 +22,9 @@ from fastslam.sim.lidar import Lidar
 from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR, DiffDrive, OdometryModel
 from fastslam.sim.route import RouteFollower
 from fastslam.sim.world import World
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 @dataclass(frozen=True)

@@ -11,19 +11,20 @@ A world file is a small YAML mapping (all lengths in metres, angles in degrees):
       - {center: [x, y], radius: R, sides: 6, yaw: 0}   # regular polygon, R = circumradius
       - {points: [[x, y], ...], solid: false}         # an enclosure: free inside
 
-A map_server map (YAML with an ``image`` key, P5 PGM) loads as well: the edges between
+A map_server map (YAML with an ``image`` key: PGM, PNG, ...) loads as well: the edges between
 occupied and other pixels become segments. Every error is a ``WorldError`` naming the field.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-Array = NDArray[np.float64]
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+    Array = NDArray[np.float64]
 
 
 class WorldError(ValueError):

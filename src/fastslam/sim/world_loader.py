@@ -1,5 +1,5 @@
 """Worlds from files: a world YAML (walls as polygons, segments, circles) or a
-map_server map (YAML + binary P5 PGM), whose occupied pixels become walls.
+map_server map (YAML + image: PGM, PNG, ...), whose occupied pixels become walls.
 
 Only the edges between an occupied pixel and a non-occupied one are kept, merged into
 runs along rows and columns, so a 384 x 384 map gives hundreds of segments, not
@@ -9,15 +9,17 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
-from numpy.typing import NDArray
 
 from fastslam.geometry import transform_points
-from fastslam.io.map_files import MapLoadError, read_pgm, trinary
+from fastslam.io.map_files import MapLoadError, read_image, trinary
 from fastslam.sim.world import World, WorldError, world_from_dict
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
 
 
 def mask_segments(occ: NDArray[np.bool_], resolution: float, origin: tuple[float, float, float]) -> NDArray[np.float64]:
@@ -67,10 +69,10 @@ def world_from_map_yaml(data: dict[str, Any], path: Path) -> World:
     if not image.is_absolute():
         image = path.parent / image
     try:
-        pixels = read_pgm(image)
+        pixels, white = read_image(image)
     except (MapLoadError, OSError) as err:
         raise WorldError(f"image: {err}") from None
-    occ = trinary(pixels, negate=bool(data.get("negate", 0)), occupied_thresh=thresh) == 100
+    occ = trinary(pixels, negate=bool(data.get("negate", 0)), occupied_thresh=thresh, maxval=white) == 100
     if not occ.any():
         raise WorldError(f"{path.name}: image {image.name} has no occupied pixel")
     spawn = data.get("spawn", [0.0, 0.0, 0.0])

@@ -27,6 +27,8 @@ from assign5.convert import (
 from fastslam.filter.grid import GridMaps
 from fastslam.geometry import yaw_from_quaternion
 
+pytestmark = pytest.mark.ros
+
 
 def transform(x, y, q):
     t = TransformStamped()

@@ -52,6 +52,7 @@ def test_ramp_moves_half_a_step_per_loop() -> None:
     assert "linear vel 0.03" in status_line(s)
 
 
+@pytest.mark.ros  # the executable imports rospy
 def test_refuses_without_a_terminal(repo_root: Path) -> None:
     env = dict(os.environ, PYTHONPATH=str(repo_root / "src"))
     out = subprocess.run([sys.executable, str(repo_root / "src" / "teleop_key.py")], stdin=subprocess.DEVNULL,

@@ -14,7 +14,7 @@ from fastslam.io.map_files import MapLoadError, MapSaveError, load_map, remove_s
 
 # grid row 0 (bottom) = [-1, 0, 25], row 1 (top) = [26, 65, 100]
 OCC = np.array([[-1, 0, 25], [26, 65, 100]], dtype=np.int8)
-HEADER = b"P5\n# CREATOR: fastslam.io.map_files 0.050 m/pix\n3 2\n255\n"
+HEADER = b"P5\n3 2\n255\n"   # Pillow's, as map_server reads it
 # image rows top first: grid row 1 -> 205 0 0, then grid row 0 -> 205 254 254
 PIXELS = bytes([205, 0, 0, 205, 254, 254])
 
@@ -122,7 +122,8 @@ def _save_as_unprivileged(folder):
             code = 1
         finally:
             os._exit(code)
-    return os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+    status = os.waitpid(pid, 0)[1]
+    return os.WEXITSTATUS(status) if os.WIFEXITED(status) else -1   # (os.waitstatus_to_exitcode is 3.9)
 
 
 def test_read_only_folder(tmp_path):
@@ -140,6 +141,52 @@ def test_rejects_non_2d(tmp_path):
         save_map(tmp_path / "m", np.zeros(5, np.int8), 0.1, (0, 0, 0))
 
 
+def _load(tmp_path, name, data, negate=0):
+    (tmp_path / name).write_bytes(data)
+    (tmp_path / "x.yaml").write_text(f"image: {name}\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: {negate}\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\nmode: trinary\n")
+    return load_map(tmp_path / "x.yaml")[0]
+
+
+# p = (maxval - v) / maxval: 1.0, 0.7, 0.5, 0.1, 0.0 -> occupied, occupied, unknown, free, free
+EXPECTED_ROW = [[100, 100, -1, 0, 0]]
+
+
+def test_pgm_with_maxval_100_reads_by_its_own_scale(tmp_path):
+    occ = _load(tmp_path, "a.pgm", b"P5\n5 1\n100\n" + bytes([0, 30, 50, 90, 100]))
+    np.testing.assert_array_equal(occ, EXPECTED_ROW)
+
+
+def test_sixteen_bit_pgm_with_maxval_1000(tmp_path):
+    values = np.array([0, 300, 500, 900, 1000], dtype=">u2")
+    occ = _load(tmp_path, "b.pgm", b"P5\n# 16 bit\n5 1\n1000\n" + values.tobytes())
+    np.testing.assert_array_equal(occ, EXPECTED_ROW)
+    np.testing.assert_array_equal(_load(tmp_path, "b.pgm", b"P5\n5 1\n1000\n" + values.tobytes(), negate=1),
+                                  [[0, -1, -1, 100, 100]])   # negate: p = v / maxval
+
+
+def test_png_map_averages_the_colour_channels_as_map_server(tmp_path):
+    from PIL import Image
+
+    rgba = np.array([[[0, 0, 0, 255], [255, 255, 0, 255], [254, 254, 254, 0]]], dtype=np.uint8)
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "c.png")
+    # yellow: mean 170 -> p = 0.33 -> unknown (Pillow's luma, 226, would say free);
+    # alpha is not part of the mean: a transparent white pixel is free
+    np.testing.assert_array_equal(_load(tmp_path, "c.png", (tmp_path / "c.png").read_bytes()), [[100, -1, 0]])
+
+
+def test_saved_pgm_opens_in_pillow_with_map_saver_pixels(tmp_path):
+    from PIL import Image
+
+    pgm, _ = save_map(tmp_path / "m", OCC, 0.05, (0.0, 0.0, 0.0))
+    with Image.open(pgm) as img:
+        assert (img.format, img.mode, img.size) == ("PPM", "L", (3, 2))
+        np.testing.assert_array_equal(np.asarray(img), np.frombuffer(PIXELS, np.uint8).reshape(2, 3))
+
+
+def test_unknown_image_is_a_map_load_error(tmp_path):
+    with pytest.raises(MapLoadError, match="cannot read image"):
+        _load(tmp_path, "d.pgm", b"not an image at all")
 def test_trinary_rule_by_hand():
     # p = (255 - v) / 255: 0 -> 1.0 (occupied), 89 -> 0.651 (occupied), 90 -> 0.647 (unknown),
     # 205 -> 0.196 (unknown: not below free_thresh 0.196), 206 -> 0.192 (free), 254 -> 0.004
@@ -160,15 +207,15 @@ def test_map_paths_from_a_stem_or_either_file(tmp_path):
         assert (pgm.name, yml.name) == ("m.pgm", "m.yaml")
 
 
-def test_read_pgm_header_forms_and_errors(tmp_path):
+def test_read_image_header_forms_and_errors(tmp_path):
     (tmp_path / "a.pgm").write_bytes(b"P5 2\n# width above, height below\n1 255\n" + bytes([7, 9]))
-    np.testing.assert_array_equal(mapfile.read_pgm(tmp_path / "a.pgm"), [[7, 9]])
-    for data, message in ((b"P2\n1 1\n255\n0", "not a binary"), (b"P5\n2 2\n65535\n" + bytes(8), "16-bit"),
-                          (b"P5\n3 3\n255\n" + bytes(4), "4 bytes of pixels, expected 9"),
-                          (b"P5\n3", "truncated"), (b"P5\nx 3 255\n", "malformed")):
+    values, white = mapfile.read_image(tmp_path / "a.pgm")
+    np.testing.assert_array_equal(values, [[7, 9]])
+    assert white == 255
+    for data in (b"P5\n3 3\n255\n" + bytes(4), b"P5\n3", b"P5\nx 3 255\n", b""):
         (tmp_path / "b.pgm").write_bytes(data)
-        with pytest.raises(MapLoadError, match=message):
-            mapfile.read_pgm(tmp_path / "b.pgm")
+        with pytest.raises(MapLoadError, match="cannot read image .*b.pgm"):
+            mapfile.read_image(tmp_path / "b.pgm")
 
 
 def test_saved_files_are_readable_by_others(tmp_path):

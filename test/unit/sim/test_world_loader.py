@@ -72,8 +72,8 @@ def test_pgm_runs_are_merged_and_header_checked(tmp_path: Path) -> None:
     occ[1, :] = True                     # one wall of 6 pixels -> 4 segments, not 24
     assert len(mask_segments(occ, 0.1, (0.0, 0.0, 0.0))) == 4
     y = _write_map(tmp_path, np.zeros((2, 2), np.uint8))
-    (tmp_path / "m.pgm").write_bytes(b"P2\n1 1\n255\n0\n")
-    with pytest.raises(WorldError, match="P5"):
+    (tmp_path / "m.pgm").write_bytes(b"P5\n4 4\n255\n\0\0\0")    # 3 of the 16 pixels
+    with pytest.raises(WorldError, match="image: cannot read image .*m.pgm"):
         load_world(y)
     y = _write_map(tmp_path, np.zeros((2, 2), np.uint8))
     y.write_text(y.read_text().replace("resolution: 0.5", "resolution: -1"))

@@ -122,6 +122,7 @@ class UserMachine:
     demo_output: str = ""
     demo_status: int = -1
     ws_steps: list[str] = field(default_factory=list)
+    logs: int = 0   # commands started so far: each has its own log
 
     @property
     def clone(self) -> Path:
@@ -160,7 +161,8 @@ class UserMachine:
 
     def start(self, line: str, cwd: Path | None = None, ros: bool = True, tty: bool = False, **env: str) -> Running:
         """Starts line in bash in its own process group; tty: on a pseudo-terminal (returned as .pty)."""
-        log = Path(self.home, "logs", f"{len(self.started):02d}.log")
+        self.logs += 1
+        log = Path(self.home, "logs", f"{self.logs:03d}.log")
         log.parent.mkdir(exist_ok=True)
         out = open(log, "wb", buffering=0)
         if tty:

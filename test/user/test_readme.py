@@ -295,6 +295,7 @@ def test_slam_gmapping_parameter_files_work_with_a_notice_and_entropy(user: Any,
         "stt: 0.2\nlinearUpdate: 0.2\nangularUpdate: 0.2\ntemporalUpdate: 0.5\nresampleThreshold: 0.5\n"
         "particles: 30\nxmin: -10.0\nymin: -10.0\nxmax: 10.0\nymax: 10.0\ndelta: 0.05\n")
     sim = user.start("roslaunch assign5 sim.launch route:=turtlebot3_world")
+    user.probe("message", "/clock", "rosgraph_msgs/Clock", "60")    # its master is up
     slam = user.start("roslaunch assign5 slam.launch config:=./gmapping.yaml")
     entropy = user.probe("message", "/slam/entropy", "std_msgs/Float64", "90")
     assert 0.0 <= entropy["value"] <= math.log(30) + 1e-9, entropy

@@ -79,14 +79,33 @@ def test_every_readme_command_is_run_by_a_test(readme: SimpleNamespace) -> None:
             assert f'run_line(readme, "{start}")' in source, f"{test} does not run {start!r}"
 
 
+def quoted(readme: SimpleNamespace, preset: str) -> dict[str, tuple[float, float]]:
+    """The README's simulator figures of a preset (its row of the preset table): ranges over seeds."""
+    row = next(line for line in readme.path.read_text().splitlines() if line.startswith(f"| `{preset}`"))
+    out = {}
+    for name, unit, scale in (("RMS", "m", 1.0), ("found", "%", 0.01), ("spurious", "%", 0.01)):
+        m = re.search(rf"{name} ([\d.]+)-([\d.]+) {unit}", row)
+        assert m, f"README's {preset} row has no {name} range: {row}"
+        out[name] = (float(m.group(1)) * scale, float(m.group(2)) * scale)
+    return out
+
+
+def within_quoted(metrics: dict[str, Any], figures: dict[str, tuple[float, float]], slack: float) -> None:
+    """A live run lies in the README's range over seeds, give or take slack (timing makes live
+    runs differ from run to run)."""
+    assert metrics["trajectory_rms_m"] <= figures["RMS"][1] * 1.5, (metrics, figures)
+    assert metrics["boundary_recall"] >= figures["found"][0] - slack, (metrics, figures)
+    assert metrics["spurious_fraction"] <= figures["spurious"][1] + slack, (metrics, figures)
+
+
 def test_make_demo(machine: Any, readme: SimpleNamespace) -> None:
     run_line(readme, "make demo")
     assert machine.demo_status == 0, machine.demo_output[-3000:]
     assert "demo: done" in machine.demo_output
     readme.clean(machine.demo_output, "make demo")
     metrics = json.loads((machine.clone / "out" / "demo" / "metrics.json").read_text())
-    assert metrics["trajectory_rms_m"] < 0.10 and metrics["boundary_recall"] > 0.90
-    assert metrics["spurious_fraction"] < 0.05 and metrics["processed_scans"] > 300
+    assert metrics["processed_scans"] > 300
+    within_quoted(metrics, quoted(readme, "burger"), 0.03)     # make demo runs the burger preset
     for name in ("map.pgm", "map.yaml", "map.png"):
         assert (machine.clone / "out" / "demo" / name).stat().st_size > 0
 
@@ -96,8 +115,8 @@ def test_demo_of_the_assignments_filter(machine: Any, readme: SimpleNamespace) -
     assert res.returncode == 0, res.stdout[-3000:]
     readme.clean(res.stdout, "scripts/demo.sh config:=slam")
     metrics = json.loads((machine.clone / "out" / "demo" / "metrics.json").read_text())
-    # the assignment's flat weight lets the particles wander by decimetres (README)
-    assert metrics["trajectory_rms_m"] < 0.3 and metrics["boundary_recall"] > 0.7
+    # the assignment's flat weight lets the particles wander by decimetres: wide ranges
+    within_quoted(metrics, quoted(readme, "slam"), 0.10)
 
 
 def test_the_assignments_way(user: Any, readme: SimpleNamespace) -> None:

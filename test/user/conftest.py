@@ -105,12 +105,18 @@ class Running:
                                  + self.output()[-3000:]) from None
 
     def kill(self) -> None:
+        """Ctrl-C first (roslaunch then stops the nodes it started, each in a session of its
+        own), SIGKILL to the group if it has not ended after 20 s."""
         if self.proc.poll() is None:
             try:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            self.proc.wait()
+                os.killpg(self.proc.pid, signal.SIGINT)
+                self.proc.wait(20)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
+                try:
+                    os.killpg(self.proc.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                self.proc.wait()
 
 
 @dataclass
@@ -196,6 +202,16 @@ class UserMachine:
     def stop_all(self) -> None:
         for r in self.started:
             r.kill()
+        # what a killed roslaunch left (masters and nodes run in sessions of their own):
+        # every process of this user's home folder, found by the HOME it was given
+        mine = f"HOME={self.home}".encode()
+        for pid in filter(str.isdigit, os.listdir("/proc")):
+            try:
+                with open(f"/proc/{pid}/environ", "rb") as f:
+                    if mine in f.read().split(b"\0") and int(pid) != os.getpid():
+                        os.kill(int(pid), signal.SIGKILL)
+            except (OSError, ValueError):
+                continue
 
 
 def clean(output: str, what: str) -> None:

@@ -3,13 +3,15 @@ SHELL := /bin/bash
 # Debian's ROS runs on /usr/bin/python3: put the project venv and /usr/bin before any pyenv.
 export PATH := $(CURDIR)/.venv/bin:/usr/bin:/bin:$(PATH)
 PY := $(CURDIR)/.venv/bin/python
-SETUP_STAMP := .ws/.built
+# The catkin workspace of `make setup` lies outside the package folder (see scripts/ws.sh).
+WS := $(shell bash scripts/ws.sh)
+SETUP_STAMP := $(WS)/.built
 
 .PHONY: setup test test-unit test-ros demo bench screenshot clean
 .DEFAULT_GOAL := help
 
 help:
-	@echo "make setup       install Debian ROS packages, .venv and build the catkin workspace in .ws/"
+	@echo "make setup       install Debian ROS packages, .venv and build a catkin workspace ($(WS))"
 	@echo "make demo        headless SLAM run on the built-in simulator, results in out/demo/"
 	@echo "make test        every test (pytest + rostest), ends with 'N passed, M failed'"
 	@echo "make bench [SUITE...]  speed, memory and accuracy benchmarks (see docs/benchmarks.md)"
@@ -18,7 +20,7 @@ help:
 setup:
 	@bash scripts/setup.sh
 
-$(SETUP_STAMP): CMakeLists.txt package.xml setup.py scripts/setup.sh scripts/debian-packages.txt scripts/requirements-dev.txt scripts/requirements-py38.txt
+$(SETUP_STAMP): CMakeLists.txt package.xml setup.py scripts/setup.sh scripts/ws.sh scripts/debian-packages.txt scripts/requirements-dev.txt scripts/requirements-py38.txt $(wildcard src/*.py)
 	@bash scripts/setup.sh
 
 test: $(SETUP_STAMP)
@@ -46,4 +48,4 @@ screenshot: $(SETUP_STAMP)
 	@bash scripts/screenshot.sh
 
 clean:
-	rm -rf .ws out
+	rm -rf out "$(WS)"

@@ -5,7 +5,7 @@
 here="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$here"
 export PATH="$here/.venv/bin:/usr/bin:/bin:$PATH"
-source "$here/.ws/devel/setup.bash"   # not under 'set -u': it reads unset variables
+source "$(bash "$here/scripts/ws.sh")/devel/setup.bash"   # not under 'set -u': it reads unset variables
 set -eo pipefail
 # A master of our own on a free port, so a running roscore is left alone.
 port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Runs every test: ruff, mypy, pytest (ROS-free core, integration), then each rostest graph test.
+# Runs every test: ruff, mypy, pytest (ROS-free core, integration), the README's commands
+# (test/user) in a fresh home folder, then each rostest graph test.
 # Ends with one line 'N passed, M failed' and exits non-zero on any failure.
-# Usage: scripts/run-tests.sh [pytest|rostest|all] [extra pytest args...]
+# Usage: scripts/run-tests.sh [pytest|user|rostest|all] [extra pytest args...]
 # TEST_OUT=dir chooses the results folder; ROSTESTS="test/ros/a.test ..." runs only those.
 set -o pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -55,9 +56,17 @@ if [ "$what" = all ] || [ "$what" = pytest ]; then
   fi
 fi
 
+# The README's commands as a new user types them, in a fresh home folder (test/user; its
+# home folders are pytest's tmp_path, outside the package folder).
+if [ "$what" = all ] || [ "$what" = user ]; then
+  echo "=== user paths (test/user): the README's commands in a fresh catkin workspace"
+  python -m pytest -p no:cacheprovider --junitxml="$outdir/user.xml" test/user "$@"
+  count_junit $? "$outdir/user.xml"
+fi
+
 if [ "$what" = all ] || [ "$what" = rostest ]; then
   # devel/setup.bash reads unset variables: never source it under 'set -u'.
-  source "$here/.ws/devel/setup.bash"
+  source "$(bash "$here/scripts/ws.sh")/devel/setup.bash"
   export ROS_HOME="$outdir/ros_home" ROS_LOG_DIR="$outdir/ros_log"
   for t in ${ROSTESTS:-test/ros/*.test}; do
     [ -e "$t" ] || continue

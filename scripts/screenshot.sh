@@ -12,7 +12,7 @@ if [ ${#need[@]} -gt 0 ]; then
   [ "$(id -u)" -eq 0 ] || { echo "screenshot: install as root first: apt-get install -y ${need[*]}"; exit 1; }
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need[@]}" >/dev/null || { echo "screenshot: apt-get install ${need[*]} failed"; exit 1; }
 fi
-source "$here/.ws/devel/setup.bash"
+source "$(bash "$here/scripts/ws.sh")/devel/setup.bash"
 set -eo pipefail
 port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
 export ROS_MASTER_URI="http://127.0.0.1:$port" ROS_HOME="$here/out/ros_home"

@@ -2,7 +2,8 @@
 # Prepares a fresh Debian 12 machine for assign5; safe to re-run.
 #   1. Debian's ROS 1 packages (apt-get, as root or through sudo)
 #   2. .venv from /usr/bin/python3 with the tools Debian lacks
-#   3. a catkin workspace in .ws/ holding this package, built with catkin_make
+#   3. a catkin workspace holding this package, built with catkin_make, outside the package
+#      folder (scripts/ws.sh prints where: ~/.cache/assign5/ws-NAME-HASH)
 set -eo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$here"
@@ -59,20 +60,31 @@ elif ! cmp -s scripts/requirements-py38.txt .venv38/.requirements 2>/dev/null; t
   cp scripts/requirements-py38.txt .venv38/.requirements
 fi
 
-# The workspace holds the package as links to its top-level entries: linking the whole
-# repository would put .ws inside itself and send rospack and rosrun round a loop.
-[ -L .ws/src/assign5 ] && rm .ws/src/assign5
-mkdir -p .ws/src/assign5
-for f in * .ci; do
-  case "$f" in out|results|build|devel) continue ;; esac
-  [ -e ".ws/src/assign5/$f" ] || ln -sfn "$here/$f" ".ws/src/assign5/$f"
+# The workspace links the whole package folder; it lies outside it (scripts/ws.sh).
+ws="$(bash scripts/ws.sh)"
+# The same requirements kept as wheels beside it: make test sets up a fresh copy of the
+# package (test/user) and must manage without a network (isolated test runs).
+wheels="$(dirname "$ws")/wheels"
+for venv in .venv .venv38; do
+  req=scripts/requirements-dev.txt; [ "$venv" = .venv38 ] && req=scripts/requirements-py38.txt
+  [ -x "$venv/bin/python" ] && ! cmp -s "$req" "$wheels/.$(basename "$req")" 2>/dev/null || continue
+  if "$venv/bin/python" -m pip download -q --disable-pip-version-check -d "$wheels" -r "$req" >/dev/null 2>&1; then
+    cp "$req" "$wheels/.$(basename "$req")"
+  else
+    echo "setup: could not keep the wheels of $req in $wheels (no network?): make test's user paths need them"
+  fi
 done
-for l in .ws/src/assign5/* .ws/src/assign5/.ci; do [ -e "$l" ] || rm -f "$l"; done
-stamp=.ws/.built
+if [ -d .ws ]; then   # the old place, inside the package: rosrun would find its copies of slam.py
+  echo "setup: removing .ws/ (the workspace now lives in $ws)"
+  rm -rf .ws
+fi
+mkdir -p "$ws/src"
+[ "$(readlink "$ws/src/assign5")" = "$here" ] || ln -sfn "$here" "$ws/src/assign5"
+stamp="$ws/.built"
 if [ ! -f "$stamp" ] || [ -n "$(find CMakeLists.txt package.xml setup.py src -maxdepth 1 -newer "$stamp" -print -quit)" ]; then
-  echo "setup: catkin_make in .ws/"
-  (cd .ws && catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON > build.log 2>&1) \
-    || { tail -30 .ws/build.log; die "catkin_make failed (full log: .ws/build.log)"; }
+  echo "setup: catkin_make in $ws"
+  (cd "$ws" && catkin_make -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON > build.log 2>&1) \
+    || { tail -30 "$ws/build.log"; die "catkin_make failed (full log: $ws/build.log)"; }
   touch "$stamp"
 fi
 echo "setup: ok"

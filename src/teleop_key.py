@@ -5,7 +5,8 @@ import time
 
 import rospy
 
-from assign5.teleop_node import TeleopNode
+from assign5 import params
+from assign5.teleop_node import TeleopConfig, TeleopNode
 
 
 def main() -> int:
@@ -14,7 +15,7 @@ def main() -> int:
               file=sys.stderr)
         return 1
     rospy.init_node("teleop_key")
-    node = TeleopNode(rospy.get_param("~max_linear", 0.22), rospy.get_param("~max_angular", 2.84))
+    node = TeleopNode(params.read(TeleopConfig))
     time.sleep(0.3)   # let cmd_vel subscribers connect before the first command
     node.run()
     return 0

@@ -24,7 +24,8 @@ from fastslam.geometry import relative, yaw_from_quaternion
 from fastslam.io.map_files import save_map
 from fastslam.sim.world_loader import load_world
 
-from . import convert
+from . import convert, params
+from .params import ReportConfig
 
 
 class RunRecorder:
@@ -33,6 +34,7 @@ class RunRecorder:
     def __init__(self, slam_ns: str = "slam") -> None:
         # The map is fetched once at the end (dynamic_map service), not subscribed.
         self.lock = threading.Lock()
+        self.path_arrived = threading.Condition(self.lock)
         self.truth: list[tuple[float, float, float, float]] = []
         self.update_ms: list[float] = []
         self.path: Path | None = None
@@ -54,6 +56,7 @@ class RunRecorder:
     def _on_path(self, msg: Path) -> None:
         with self.lock:
             self.path = msg
+            self.path_arrived.notify_all()
 
     def _on_done(self, msg: Bool) -> None:
         if msg.data:
@@ -71,12 +74,7 @@ class RunRecorder:
         """The best particle's trajectory (T, 4) and map, after the node's next publication."""
         with self.lock:
             self.path = None
-        deadline = time.monotonic() + settle
-        while time.monotonic() < deadline and not rospy.is_shutdown():
-            with self.lock:
-                if self.path is not None:
-                    break
-            time.sleep(0.05)
+            self.path_arrived.wait_for(lambda: self.path is not None, timeout=settle)
         rospy.wait_for_service("dynamic_map", timeout=10.0)
         grid = rospy.ServiceProxy("dynamic_map", GetMap)().map
         with self.lock:
@@ -120,10 +118,10 @@ def write_outputs(out: FilePath, metrics: dict, occ: np.ndarray, grid: Occupancy
 
 def main() -> None:
     rospy.init_node("run_report")
-    out = FilePath(os.path.expanduser(rospy.get_param("~out", "out/demo"))).absolute()
-    world_file = rospy.get_param("~world_file")
+    cfg = params.read(ReportConfig)
+    out = FilePath(os.path.expanduser(cfg.out)).absolute()
+    world_file, settle = cfg.world_file, cfg.settle
     print("waiting for the simulator's route; progress every 5 s", flush=True)
-    settle = float(rospy.get_param("~settle", 10.0))
     rec = RunRecorder()
     last = 0.0
     while not rec.done.wait(0.2):

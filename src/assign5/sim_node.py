@@ -2,7 +2,9 @@
 
 Publishes ``scan`` (LaserScan, frame base_scan), ``odom`` (Odometry odom -> base_footprint) and
 the same tf, static base_footprint -> base_link -> base_scan, ``ground_truth`` (Odometry in
-frame ``world``), ``route_done`` (Bool, latched) and, with use_sim_time, ``/clock``.
+frame ``world``, tied to ``map`` by a static tf: a SLAM map frame starts at the spawn pose, so
+RViz shows the truth where a perfect map would put it), ``route_done`` (Bool, latched) and,
+with use_sim_time, ``/clock``. Driving into a wall is logged once per contact.
 Subscribes ``cmd_vel`` (Twist). The simulator owns time: it advances in fixed ticks and
 sleeps on the wall clock, never on rospy time (that would wait on its own /clock).
 """
@@ -23,7 +25,9 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Bool
 
 from fastslam.config import ConfigError
+from fastslam.geometry import inverse
 from fastslam.sim import SimConfig, Simulation, World, WorldError, load_route, load_world
+from fastslam.sim.lidar import driver_ranges
 from fastslam.sim.sim import Tick
 
 from . import convert
@@ -143,7 +147,8 @@ class SimNode:
         c = self.cfg
         self.tf_static.sendTransform([
             convert.transform_msg(stamp, "base_footprint", "base_link", 0.0, 0.0, 0.0, z=c.base_link_z),
-            convert.transform_msg(stamp, "base_link", "base_scan", c.laser_x, c.laser_y, 0.0, z=c.laser_z)])
+            convert.transform_msg(stamp, "base_link", "base_scan", c.laser_x, c.laser_y, 0.0, z=c.laser_z),
+            convert.transform_msg(stamp, "map", "world", *inverse(self.sim.spawn))])
 
     def _publish(self, tick: Tick) -> None:
         stamp = self._stamp(tick.t)
@@ -155,8 +160,12 @@ class SimNode:
             self.pub_odom.publish(_odometry(stamp, "odom", odom, *sim.odom_twist, self.odom_var))
             self.tf.sendTransform(convert.transform_msg(stamp, "odom", "base_footprint", *odom))
             self.pub_truth.publish(_odometry(stamp, "world", sim.robot.pose, sim.robot.v, sim.robot.w, 0.0))
+        if tick.bumped:
+            x, y, _ = sim.robot.pose
+            rospy.logwarn("simulator: the robot ran into a wall at (%.2f, %.2f) (world frame) and stops "
+                          "there until driven away", x, y)
         if tick.scan is not None:
-            ranges = tick.scan if self.cfg.no_return == "inf" else np.where(np.isinf(tick.scan), 0.0, tick.scan)
+            ranges = driver_ranges(tick.scan, self.cfg.range_min, self.cfg.no_return)
             self.scan_msg.header.stamp = stamp
             self.scan_msg.ranges = ranges.tolist()
             self.pub_scan.publish(self.scan_msg)

@@ -1,9 +1,7 @@
 """The FastSLAM ROS node: messages in, one core call per scan, messages out."""
 from __future__ import annotations
 
-import os
 import threading
-import time
 import traceback
 
 import numpy as np
@@ -17,14 +15,15 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger, TriggerResponse
 
 from fastslam.config import SlamConfig
-from fastslam.filter.frontend import Dropped, Frontend, drop_key
+from fastslam.filter.frontend import Dropped, Frontend, Reset, drop_key
 from fastslam.filter.slam import FastSlam
 from fastslam.geometry import compose, inverse
 from fastslam.io.map_files import MapSaveError, save_map
 
 from . import convert
 from .convert import BadMessage
-from .params import NodeConfig
+from .params import NodeConfig, map_path
+from .watchdog import Watchdog
 
 
 class SlamNode:
@@ -34,6 +33,7 @@ class SlamNode:
         self.cfg = cfg
         self.slam = FastSlam(slam_cfg)
         self.lock = threading.RLock()  # the filter, the odometry buffer, map->odom
+        self.odom_arrived = threading.Condition(self.lock)
         self.front = Frontend(self.slam, odom_timeout=cfg.odom_timeout, odom_buffer=cfg.odom_buffer,
                               max_odom_speed=cfg.max_odom_speed, max_odom_jump=cfg.max_odom_jump)
         self.map_to_odom = np.zeros(3)
@@ -42,6 +42,8 @@ class SlamNode:
         self.last_tf_time = rospy.Time(0)
         self.warned_clip = False
         self.updates = 0
+        self.scans_seen = 0
+        self.entropy = 0.0
         self.dropped: dict[str, int] = {}
         self.update_ms: list[float] = []
 
@@ -55,6 +57,7 @@ class SlamNode:
         self.pub_path = rospy.Publisher("~trajectory", Path, queue_size=1, latch=True)
         self.pub_neff = rospy.Publisher("~neff", Float64, queue_size=1)
         self.pub_time = rospy.Publisher("~update_time", Float64, queue_size=1)
+        self.pub_entropy = rospy.Publisher("~entropy", Float64, queue_size=1, latch=True)
         self.pub_debug = [rospy.Publisher(f"~particle_map_{i}", OccupancyGrid, queue_size=1, latch=True)
                           for i in range(cfg.debug_maps)]
         self.srv_map = rospy.Service("dynamic_map", GetMap, self.on_get_map)
@@ -65,6 +68,7 @@ class SlamNode:
         if cfg.transform_publish_period > 0:
             self.tf_timer = rospy.Timer(rospy.Duration(cfg.transform_publish_period), self.on_tf_timer)
         rospy.on_shutdown(self.on_shutdown)
+        self.watchdog = Watchdog(self.sub_scan.resolved_name, cfg.no_scan_warning, lambda: self.scans_seen)
         rospy.loginfo(f"FastSLAM: {slam_cfg.particles} particles, {slam_cfg.map_resolution} m cells, "
                       f"{cfg.scan_topic} + {cfg.odom_topic} -> map in '{cfg.map_frame}'")
 
@@ -75,10 +79,12 @@ class SlamNode:
             with self.lock:
                 self.front.add_odom(msg.header.stamp.to_sec(), pose)
                 self._log_events()
+                self.odom_arrived.notify_all()
         except Dropped as err:  # convert's BadMessage is Dropped too
             self._drop(f"odometry: {err}")
 
     def on_scan(self, msg: LaserScan) -> None:
+        self.scans_seen += 1
         try:
             self._process(msg)
         except Dropped as err:  # convert's BadMessage is Dropped too
@@ -108,6 +114,7 @@ class SlamNode:
             best = self.slam.poses[self.slam.best]
             self.map_to_odom = compose(best, inverse(self.front.last_odom))
             self.updates += 1
+            self.entropy = info.entropy
         self._publish_update(msg.header.stamp, info)
         if stamp - self.last_map_stamp >= self.cfg.map_update_interval:
             self.last_map_stamp = stamp
@@ -116,18 +123,17 @@ class SlamNode:
     def _wait_for_odom(self, stamp: float) -> None:
         """Gives odometry published with the scan a moment to arrive, so the scan is
         matched with odometry at its own stamp, as the offline runner does."""
-        deadline = time.monotonic() + self.cfg.odom_wait
-        while time.monotonic() < deadline and not rospy.is_shutdown():
-            with self.lock:
-                latest = self.front.odom.latest
-            if latest is not None and latest[0] >= stamp:
-                return
-            time.sleep(0.002)
+        def arrived() -> bool:
+            latest = self.front.odom.latest
+            return latest is not None and latest[0] >= stamp
+
+        with self.odom_arrived:  # on_odom notifies
+            self.odom_arrived.wait_for(arrived, timeout=self.cfg.odom_wait)
 
     def _log_events(self) -> None:
         for event in self.front.events:
-            rospy.logwarn(event)
-            if event.startswith("resetting"):
+            rospy.logwarn(str(event))
+            if isinstance(event, Reset):
                 self.tf_buffer.clear()
                 self.map_to_odom = np.zeros(3)
                 self.last_map_stamp = -np.inf
@@ -193,6 +199,7 @@ class SlamNode:
         self.pub_map.publish(msg)
         self.pub_meta.publish(meta)
         self.pub_path.publish(path)
+        self.pub_entropy.publish(Float64(self.entropy))  # as gmapping: with each map
         for pub, m in zip(self.pub_debug, debug):
             pub.publish(m)
 
@@ -216,7 +223,12 @@ class SlamNode:
         return GetMapResponse(map=msg)
 
     def save(self) -> tuple[bool, str]:
-        path = os.path.expanduser(self.cfg.map_file)
+        if self.updates == 0:
+            why = (f"nothing mapped yet: no scan processed ({self.scans_seen} received on "
+                   f"{self.sub_scan.resolved_name}, {sum(self.dropped.values())} messages dropped)")
+            rospy.logwarn(f"map not saved: {why}")
+            return False, why
+        path = map_path(self.cfg.map_file)
         with self.lock:
             grid, best = self.slam.grid, self.slam.best
             occ = grid.occupancy(best)

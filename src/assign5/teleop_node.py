@@ -12,6 +12,10 @@ import sys
 import termios
 from dataclasses import dataclass, replace
 
+from fastslam.fields import check_fields
+from fastslam.fields import num as _num
+from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR
+
 LIN_STEP = 0.01   # [m/s] per w/x press
 ANG_STEP = 0.1    # [rad/s] per a/d press
 BANNER_EVERY = 20  # velocity keypresses between banner reprints
@@ -33,6 +37,17 @@ CTRL-C to quit
 
 
 @dataclass(frozen=True)
+class TeleopConfig:
+    """teleop_key.py's private parameters: the robot's limits (the burger's by default)."""
+
+    max_linear: float = _num(MAX_LINEAR, 0.0, 10.0, "largest target speed [m/s]")
+    max_angular: float = _num(MAX_ANGULAR, 0.0, 100.0, "largest target turn rate [rad/s]")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
+@dataclass(frozen=True)
 class TeleopState:
     """Targets chosen by the keys and the ramped command actually sent ([m/s], [rad/s])."""
 
@@ -47,7 +62,8 @@ def _clamp(v: float, limit: float) -> float:
     return max(-limit, min(limit, v))
 
 
-def press(state: TeleopState, key: str, max_linear: float = 0.22, max_angular: float = 2.84) -> tuple[TeleopState, str]:
+def press(state: TeleopState, key: str, max_linear: float = MAX_LINEAR,
+          max_angular: float = MAX_ANGULAR) -> tuple[TeleopState, str]:
     """Applies one key -> (new state, kind); kind is 'speed', 'stop', 'quit' or 'none'.
 
     Targets are rounded to the step so repeated presses do not accumulate float error.
@@ -88,12 +104,12 @@ def status_line(state: TeleopState) -> str:
 class TeleopNode:
     """Reads keys from the terminal (0.1 s timeout) and publishes cmd_vel every loop."""
 
-    def __init__(self, max_linear: float = 0.22, max_angular: float = 2.84) -> None:
+    def __init__(self, cfg: TeleopConfig) -> None:
         import rospy
         from geometry_msgs.msg import Twist
 
         self.rospy, self.Twist = rospy, Twist
-        self.max_linear, self.max_angular = max_linear, max_angular
+        self.max_linear, self.max_angular = cfg.max_linear, cfg.max_angular
         self.pub = rospy.Publisher("cmd_vel", Twist, queue_size=10)
         self.fd = sys.stdin.fileno()
 

@@ -5,11 +5,14 @@ from __future__ import annotations
 import rospy
 from tf2_msgs.msg import TFMessage
 
+from . import params
+from .params import RelayConfig
+
 
 def main() -> None:
     rospy.init_node("tf_relay")
-    drop_child = rospy.get_param("~odom_frame", "odom")
-    drop_parent = rospy.get_param("~map_frame", "map")
+    cfg = params.read(RelayConfig)
+    drop_child, drop_parent = cfg.odom_frame, cfg.map_frame
     pub = rospy.Publisher("/tf", TFMessage, queue_size=100)
 
     def relay(msg: TFMessage) -> None:

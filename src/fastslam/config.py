@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import builtins  # gmapping's parameter `str` below shadows the type in the class body
 import dataclasses
+import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +26,9 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
 
 
-__all__ = ["ConfigError", "SlamConfig", "parse_override"]
+__all__ = ["ConfigError", "SlamConfig", "parse_override", "translate_gmapping"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -150,12 +153,23 @@ class SlamConfig:
         return np.array([self.sigma_x, self.sigma_y, self.sigma_theta]) * float(self.toggle_noise)
 
     @classmethod
-    def from_dict(cls, values: Mapping[builtins.str, Any]) -> SlamConfig:
-        """Build from a flat mapping; unknown keys and bad values raise ConfigError."""
-        return cls(**coerce(cls, values))
+    def from_dict(cls, values: Mapping[builtins.str, Any], *, notices: list[builtins.str] | None = None) -> SlamConfig:
+        """Build from a flat mapping; unknown keys and bad values raise ConfigError.
+
+        slam_gmapping's parameter names are read as ours (translate_gmapping); each one
+        read gives a one-line notice, appended to notices if given, else logged.
+        """
+        ours, said = translate_gmapping(values)
+        if notices is not None:
+            notices.extend(said)
+        else:
+            for line in said:
+                log.warning(line)
+        return cls(**coerce(cls, ours))
 
     @classmethod
-    def from_yaml(cls, path: builtins.str | Path, overrides: Mapping[builtins.str, Any] | None = None) -> SlamConfig:
+    def from_yaml(cls, path: builtins.str | Path, overrides: Mapping[builtins.str, Any] | None = None, *,
+                  notices: list[builtins.str] | None = None) -> SlamConfig:
         import yaml  # only file loading needs it
 
         try:
@@ -167,7 +181,7 @@ class SlamConfig:
         if not isinstance(data, dict):
             raise ConfigError(f"{path}: expected a mapping of parameters, got {type(data).__name__}")
         data.update(overrides or {})
-        return cls.from_dict(data)
+        return cls.from_dict(data, notices=notices)
 
     def replace(self, **changes: Any) -> SlamConfig:
         return self.from_dict({**self.to_dict(), **changes})
@@ -184,3 +198,72 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not sep or not key:
         raise ConfigError(f"override '{text}' must look like key=value")
     return key.strip(), yaml.safe_load(value)
+
+
+# slam_gmapping's names of parameters we have under another name (same unit unless a
+# conversion is given). Its names that are ours too (particles, srr, srt, str, stt, the
+# frames, map_update_interval, ...) need nothing.
+GMAPPING_NAMES: dict[str, str] = {
+    "delta": "map_resolution",
+    "maxUrange": "max_range",
+    "linearUpdate": "linear_update",
+    "angularUpdate": "angular_update",
+    "temporalUpdate": "temporal_update",
+    "resampleThreshold": "resample_threshold",
+    "lsigma": "likelihood_sigma",
+    "lskip": "beam_step",            # gmapping skips lskip beams after each used one: k = lskip + 1
+}
+# gmapping's initial map extent (absolute, default -100..100 m); ours is centred on the start pose
+GMAPPING_EXTENT = {"xmin": ("map_width", -100.0), "xmax": ("map_width", 100.0),
+                   "ymin": ("map_height", -100.0), "ymax": ("map_height", 100.0)}
+# gmapping's parameters without a counterpart: accepted and ignored, saying what is closest
+GMAPPING_IGNORED: dict[str, str] = {
+    "sigma": "the matcher has no end-point sigma; see likelihood_sigma",
+    "kernelSize": "the matcher searches match_xy_range / match_theta_range",
+    "lstep": "the matcher's steps follow match_xy_range", "astep": "the matcher's steps follow match_theta_range",
+    "iterations": "the matcher refines with match_refine",
+    "ogain": "see likelihood_gain (an exponent, not a divisor)",
+    "minimumScore": "see match_min_score (a share of end points, not an absolute score)",
+    "llsamplerange": "no likelihood sampling around the match", "llsamplestep": "no likelihood sampling",
+    "lasamplerange": "no likelihood sampling", "lasamplestep": "no likelihood sampling",
+    "maxRange": "readings at or past the laser's range_max are no-returns (no_return_range)",
+    "throttle_scans": "see linear_update / angular_update / temporal_update",
+    "occ_thresh": "the map is published as occupancy percentages (map_saver thresholds when saved)",
+}
+
+
+def translate_gmapping(values: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """values with slam_gmapping's parameter names replaced by ours (converted where the
+    units differ) and its names without a counterpart removed; plus one notice per name
+    read. A gmapping name and ours both given with different values is a ConfigError."""
+    out = {k: v for k, v in values.items()
+           if k not in GMAPPING_NAMES and k not in GMAPPING_EXTENT and k not in GMAPPING_IGNORED}
+    notices: list[str] = []
+
+    def put(ours: str, value: Any, said: str, why: str = "") -> None:
+        if ours in values and values[ours] != value:
+            raise ConfigError(f"{said} (slam_gmapping's) disagrees with {ours}={values[ours]!r}: give one of them")
+        out[ours] = value
+        notices.append(f"{said} (slam_gmapping's) read as {ours}={value!r}{why}")
+
+    for name, ours in GMAPPING_NAMES.items():
+        if name in values:
+            v = values[name]
+            if name == "lskip":
+                if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+                    raise ConfigError(f"lskip={v!r} must be an integer >= 0")
+                put(ours, v + 1, f"lskip={v!r}", " (every (lskip + 1)-th beam)")
+                continue
+            put(ours, v, f"{name}={v!r}")
+    for ours in ("map_width", "map_height"):
+        names = [n for n, (o, _) in GMAPPING_EXTENT.items() if o == ours]
+        if any(n in values for n in names):
+            lo, hi = (values.get(n, GMAPPING_EXTENT[n][1]) for n in names)
+            if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (lo, hi)) or hi <= lo:
+                raise ConfigError(f"{names[0]}={lo!r}, {names[1]}={hi!r}: need numbers with {names[0]} < {names[1]}")
+            put(ours, float(hi - lo), f"{names[0]}={lo!r}, {names[1]}={hi!r}",
+                f" ({names[1]} - {names[0]}: the grid starts centred on the robot and grows)")
+    for name, hint in GMAPPING_IGNORED.items():
+        if name in values:
+            notices.append(f"{name}={values[name]!r} (slam_gmapping's) has no counterpart here and is ignored: {hint}")
+    return out, notices

@@ -147,7 +147,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
         except Dropped as err:
             key = drop_key(str(err))
             result.dropped[key] = result.dropped.get(key, 0) + 1
-        result.events += front.events
+        result.events += [str(e) for e in front.events]
         front.events.clear()
         if isinstance(rec, ScanRecord):
             bar.update(1)

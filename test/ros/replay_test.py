@@ -1,16 +1,15 @@
 #!/usr/bin/env python3
-"""A simulator bag played with `rosbag play --clock` into slam.py equals the offline run.
-
-The test writes a bag of the simulated room run (the same physics as the simulator
-node), plays it into the live node on sim time, then runs fastslam.offline on the same
-bag with the node's own parameters and seed. On the scans the node processed the two
-trajectories agree; both are compared with the simulator's ground truth.
+"""`roslaunch assign5 replay.launch bag:=room.bag` (a relative path) replays a simulator
+bag into slam.py, ends by itself without an error banner and leaves the map beside the
+bag; the live trajectory equals fastslam.offline on the same bag with the node's own
+parameters and seed, on the scans the node processed.
 """
 import os
+import re
 import subprocess
 import sys
 import tempfile
-import time
+import threading
 import unittest
 
 import numpy as np
@@ -18,9 +17,9 @@ import rospy
 import rostest
 from nav_msgs.msg import Path
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
 from assign5.params import split_params
 from fastslam import offline, simrun
+from fastslam.config import SlamConfig
 from fastslam.eval.maps import trajectory_errors
 from fastslam.io.bag_reader import BagData, read_bag
 from fastslam.io.bag_writer import write_bag
@@ -28,30 +27,43 @@ from fastslam.transforms import StaticTransform
 
 
 class Replay(unittest.TestCase):
-    def test_live_replay_matches_offline(self):
+    def test_replay_launch_matches_offline_and_saves_the_map(self):
         rospy.init_node("replay_test")
-        _, cfg = split_params(rospy.get_param("/slam"))
         folder = tempfile.mkdtemp(prefix="assign5_replay_")
         bag = os.path.join(folder, "room.bag")
-        sim = simrun.run("room", cfg.replace(particles=1), seed=2, record=True)
+        sim = simrun.run("room", SlamConfig(particles=1), seed=2, record=True)
         write_bag(bag, sim.scans, sim.odoms, static_transforms=[
             StaticTransform.planar("base_footprint", "base_link", z=0.010),
             StaticTransform.planar("base_link", "base_scan", x=-0.032, z=0.172)])
 
+        got = threading.Condition()
         paths = []
-        rospy.Subscriber("slam/trajectory", Path, paths.append)
-        play = subprocess.run(["rosbag", "play", "--clock", "-q", "-d", "1", "-r", "1.0", bag],
-                              capture_output=True, text=True, timeout=300)
-        self.assertEqual(play.returncode, 0, play.stderr)
-        time.sleep(1.0)
-        deadline = time.time() + 30
-        while (not paths or paths[-1].poses[-1].header.stamp.to_sec() < sim.scans[-1].t - 2.5) \
-                and time.time() < deadline:
-            time.sleep(0.2)
-        live = np.array([(p.header.stamp.to_sec(), p.pose.position.x, p.pose.position.y,
-                          2 * np.arctan2(p.pose.orientation.z, p.pose.orientation.w)) for p in paths[-1].poses])
-        self.assertGreater(len(live), 0.9 * len(sim.scans), "the node dropped too many scans")
 
+        def on_path(msg):
+            with got:
+                paths.append(msg)
+                got.notify_all()
+
+        rospy.Subscriber("slam/trajectory", Path, on_path)
+        # as typed in the bag's folder: PWD is what a shell would set there
+        launch = subprocess.run(["roslaunch", "assign5", "replay.launch", "bag:=room.bag", "config:=burger",
+                                 "seed:=5"], cwd=folder, env={**os.environ, "PWD": folder},
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
+        out = launch.stdout
+        self.assertEqual(launch.returncode, 0, out[-3000:])
+        self.assertIsNone(re.search(r"Traceback|\[FATAL\]|ERROR|has died", out), out[-3000:])
+        saved = os.path.join(folder, "room_map.yaml")
+        self.assertIn(f"map saved: {saved}", out)
+        self.assertTrue(os.path.isfile(saved) and os.path.getsize(os.path.join(folder, "room_map.pgm")) > 1000)
+        with got:
+            self.assertTrue(got.wait_for(lambda: paths, 10.0), "no trajectory was published")
+            last = paths[-1]
+
+        live = np.array([(p.header.stamp.to_sec(), p.pose.position.x, p.pose.position.y,
+                          2 * np.arctan2(p.pose.orientation.z, p.pose.orientation.w)) for p in last.poses])
+        self.assertGreater(len(live), 0.8 * len(sim.scans), "the node dropped too many scans")
+        _, cfg = split_params(rospy.get_param("/slam"))   # the node's parameters stay on the master
+        self.assertEqual((cfg.seed, cfg.proposal), (5, "scan_match"))
         data = read_bag(bag)
         processed = set(np.round(live[:, 0], 6))
         kept = [s for s in data.scans if round(s.t, 6) in processed]
@@ -67,4 +79,4 @@ class Replay(unittest.TestCase):
 
 
 if __name__ == "__main__":
-    rostest.rosrun("assign5", "replay", Replay)
+    rostest.rosrun("assign5", "replay_test", Replay)

@@ -1,27 +1,32 @@
 #!/usr/bin/env python3
 """Bad input never takes slam.py down: each case is dropped or handled, then good input works.
 
-A synthetic square room (2.5 m half-width) is scanned from poses the test publishes on
-/odom, with a static tf base_footprint -> base_scan; between bad messages the test
-checks that a good scan still yields a particle update.
+A square room (2.5 m half-width, the simulator's exact ray casting) is scanned from poses
+the test publishes on /odom, with a static tf base_footprint -> base_scan. The node
+handles scans in order (robustness.test gives it a long queue), so a bad scan followed
+by a good one is settled once the good one's update is out: the test waits on that,
+with a deadline, never on a sleep. Each test first makes sure the node updates.
 """
 import math
 import os
-import sys
+import signal
+import subprocess
+import tempfile
+import threading
 import time
 import unittest
 
 import numpy as np
+import rospkg
 import rospy
 import rostest
 import tf2_ros
-from geometry_msgs.msg import PoseArray, TransformStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
 from fastslam.sim.lidar import cast_rays
 from fastslam.sim.world_loader import load_world
 
@@ -29,48 +34,73 @@ ANGLES = np.radians(np.arange(360.0))
 ROOM = load_world(os.path.join(os.path.dirname(__file__), "..", "..", "worlds", "pillar_room.yaml"))
 
 
+class Connected(rospy.SubscribeListener):
+    """Wakes the test when slam.py connects to one of its publishers."""
+
+    def __init__(self, cond):
+        super().__init__()
+        self.cond = cond
+
+    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
+        with self.cond:
+            self.cond.notify_all()
+
+
 class Robustness(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("robustness_test")
-        cls.pub_scan = rospy.Publisher("scan", LaserScan, queue_size=10)
-        cls.pub_odom = rospy.Publisher("odom", Odometry, queue_size=10)
+        cls.changed = threading.Condition()
+        listener = Connected(cls.changed)
+        cls.pub_scan = rospy.Publisher("scan", LaserScan, queue_size=20, subscriber_listener=listener)
+        cls.pub_odom = rospy.Publisher("odom", Odometry, queue_size=20, subscriber_listener=listener)
         cls.static = tf2_ros.StaticTransformBroadcaster()
         t = TransformStamped()
         t.header.stamp = rospy.Time.now()
         t.header.frame_id, t.child_frame_id = "base_footprint", "base_scan"
         t.transform.rotation.w = 1.0
         cls.static.sendTransform(t)
-        cls.updates = 0
+        cls.poses = {}     # scan stamp [s] -> x of the pose the node published for it
         cls.path = None
-        rospy.Subscriber("particles", PoseArray, cls._on_particles)
-        rospy.Subscriber("slam/trajectory", Path, cls._on_path)
+        rospy.Subscriber("slam/pose", PoseWithCovarianceStamped, cls._on_pose, queue_size=50)
+        rospy.Subscriber("slam/trajectory", Path, cls._on_path, queue_size=5)
         cls.x = 0.0
-        deadline = time.time() + 20
-        while cls.pub_scan.get_num_connections() == 0 or cls.pub_odom.get_num_connections() == 0:
-            assert time.time() < deadline, "slam node did not subscribe"
-            time.sleep(0.1)
+        cls.last_stamp = rospy.Time(0)
+        cls.wait(lambda: cls.pub_scan.get_num_connections() and cls.pub_odom.get_num_connections(), 30,
+                 "slam.py subscribing to scan and odom")
 
     @classmethod
-    def _on_particles(cls, msg):
-        cls.updates += 1
+    def wait(cls, predicate, timeout, what):
+        with cls.changed:
+            ok = cls.changed.wait_for(predicate, timeout)
+        assert ok, f"no {what} within {timeout} s"
+        return ok
+
+    @classmethod
+    def _on_pose(cls, msg):
+        with cls.changed:
+            cls.poses[round(msg.header.stamp.to_sec(), 6)] = msg.pose.pose.position.x
+            cls.changed.notify_all()
 
     @classmethod
     def _on_path(cls, msg):
-        cls.path = msg
+        with cls.changed:
+            cls.path = msg
+            cls.changed.notify_all()
 
-    def odom(self, x, stamp=None, quat=(0.0, 0.0, 0.0, 1.0)):
+    # -- messages ---------------------------------------------------------------------
+    def odom(self, x, stamp, quat=(0.0, 0.0, 0.0, 1.0)):
         o = Odometry()
-        o.header.stamp = stamp or rospy.Time.now()
+        o.header.stamp = stamp
         o.header.frame_id, o.child_frame_id = "odom", "base_footprint"
         o.pose.pose.position.x = x
-        o.pose.pose.orientation.x, o.pose.pose.orientation.y, o.pose.pose.orientation.z, \
-            o.pose.pose.orientation.w = quat
+        q = o.pose.pose.orientation
+        q.x, q.y, q.z, q.w = quat
         self.pub_odom.publish(o)
 
-    def scan(self, stamp=None, **fields):
+    def scan(self, stamp, **fields):
         s = LaserScan()
-        s.header.stamp = stamp or rospy.Time.now()
+        s.header.stamp = stamp
         s.header.frame_id = "base_scan"
         s.angle_min, s.angle_increment = 0.0, math.radians(1.0)
         s.angle_max = math.radians(359.0)
@@ -81,38 +111,63 @@ class Robustness(unittest.TestCase):
             setattr(s, k, v)
         self.pub_scan.publish(s)
 
-    def good_step(self):
-        """Odometry then a scan at the same stamp; returns whether an update came out."""
-        before = self.updates
-        self.x += 0.01
-        now = rospy.Time.now()
-        self.odom(self.x, now)
-        time.sleep(0.05)
-        self.scan(now)
-        deadline = time.time() + 3
-        while self.updates == before and time.time() < deadline:
-            time.sleep(0.02)
-        return self.updates > before
+    def updated(self, stamp, timeout=5.0):
+        """Whether the node published a pose for the scan stamped stamp, waiting up to timeout."""
+        key = round(stamp.to_sec(), 6)
+        with self.changed:
+            return self.changed.wait_for(lambda: key in self.poses, timeout)
 
-    def assert_still_works(self):
-        self.assertTrue(any(self.good_step() for _ in range(3)), "no update after the bad message")
+    def stamp(self):
+        """Now, but at least 2 ms after the last stamp: 2 mm per step is then at most 1 m/s,
+        below max_odom_speed (a faster step is a kidnap)."""
+        type(self).last_stamp = max(rospy.Time.now(), self.last_stamp + rospy.Duration(0.002))
+        return self.last_stamp
+
+    def good_step(self, timeout=5.0):
+        """Odometry then a scan at the same stamp; the stamp if an update came out, else None."""
+        self.x += 0.002
+        now = self.stamp()
+        self.odom(self.x, now)
+        self.scan(now)
+        return now if self.updated(now, timeout) else None
+
+    def ready(self):
+        """The node updates (the first scans may come before it has the static tf)."""
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            stamp = self.good_step(2.0)
+            if stamp:
+                return stamp
+        self.fail("slam.py never updated on good input")
 
     def bad_scan(self, stamp=None, **fields):
-        now = rospy.Time.now()
+        """A scan with fields changed, then a good one; whether the bad one gave an update."""
+        self.ready()
+        now = self.stamp()
         self.odom(self.x, now)
-        time.sleep(0.05)
-        before = self.updates
-        self.scan(stamp or now, **fields)
-        time.sleep(0.4)
-        return self.updates - before
+        bad = stamp or now
+        self.scan(bad, **fields)
+        after = self.good_step()
+        self.assertIsNotNone(after, "no update on good input after the bad scan")
+        return self.updated(bad, 0.0)
 
-    def test_1_good_input_updates(self):
-        # the first scans may come before the node has the static tf: those are dropped
-        self.assertTrue(any(self.good_step() for _ in range(20)))
+    def path_after(self, stamp, timeout=10.0):
+        """The first trajectory published after the scan stamped stamp (good steps until then)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self.changed:
+                if self.path is not None and self.path.poses[-1].header.stamp >= stamp:
+                    return self.path
+            self.good_step()
+        self.fail(f"no trajectory published after {stamp.to_sec():.2f}")
+
+    # -- cases ------------------------------------------------------------------------
+    def test_good_input_updates(self):
+        self.ready()
         for _ in range(3):
-            self.assertTrue(self.good_step())
+            self.assertIsNotNone(self.good_step())
 
-    def test_2_bad_scans_are_dropped(self):
+    def test_bad_scans_are_dropped(self):
         cases = {
             "empty": dict(ranges=[]),
             "length": dict(ranges=[1.0] * 100),
@@ -124,65 +179,61 @@ class Robustness(unittest.TestCase):
         }
         for name, fields in cases.items():
             with self.subTest(name):
-                self.assertEqual(self.bad_scan(**fields), 0, f"{name}: scan was used")
-                self.assert_still_works()
+                stamp = fields["header"].stamp if "header" in fields else None
+                self.assertFalse(self.bad_scan(stamp, **fields), f"{name}: scan was used")
 
-    def test_3_bad_readings_are_ignored_not_fatal(self):
-        r = [float("nan"), float("inf"), -1.0, 0.0, 99.0] * 72
-        self.assertEqual(self.bad_scan(ranges=r), 1)
-        self.assertEqual(self.bad_scan(intensities=[1.0, 2.0]), 1)  # intensities are not used
-        self.assertEqual(self.bad_scan(angle_increment=-math.radians(1.0), angle_max=-math.radians(359.0)), 1)
-        self.assert_still_works()
+    def test_bad_readings_are_ignored_not_fatal(self):
+        self.assertTrue(self.bad_scan(ranges=[float("nan"), float("inf"), -1.0, 0.0, 99.0] * 72))
+        self.assertTrue(self.bad_scan(intensities=[1.0, 2.0]))  # intensities are not used
+        self.assertTrue(self.bad_scan(angle_increment=-math.radians(1.0), angle_max=-math.radians(359.0)))
 
-    def test_4_bad_odometry(self):
-        now = rospy.Time.now()
+    def test_bad_odometry(self):
+        self.ready()
+        now = self.stamp()
         self.odom(float("nan"), now)
         self.odom(self.x, now, quat=(0.0, 0.0, 0.0, 0.0))
         self.odom(self.x, now, quat=(0.0, 0.0, 0.0, 7.0))  # not normalised: still heading 0
-        self.assert_still_works()
+        self.scan(now)
+        self.assertTrue(self.updated(now), "the scan with the normalisable odometry was not used")
+        self.assertIsNotNone(self.good_step())
 
-    def test_5_odometry_jump_is_not_integrated(self):
-        self.assert_still_works()
-        before = self.path_end()
+    def test_odometry_jump_is_not_integrated(self):
+        before = self.poses[round(self.ready().to_sec(), 6)]
         self.x += 50.0
-        self.assert_still_works()
-        time.sleep(2.5)
-        after = self.path_end()
-        self.assertLess(abs(after - before), 1.0, "the kidnap jump was integrated")
+        after = self.ready()
+        self.assertIsNotNone(self.good_step())
+        self.assertLess(abs(self.poses[round(after.to_sec(), 6)] - before), 1.0, "the kidnap jump was integrated")
+        self.x -= 50.0   # back into the room (another kidnap) for the other tests
+        self.ready()
 
-    def test_6_future_stamps_are_rejected(self):
-        self.assertEqual(self.bad_scan(stamp=rospy.Time.now() + rospy.Duration(3600)), 0)
-        self.assert_still_works()
+    def test_future_stamps_are_rejected(self):
+        self.assertFalse(self.bad_scan(stamp=rospy.Time.now() + rospy.Duration(3600)))
 
-    def test_7_time_going_backwards_resets(self):
-        self.assert_still_works()
-        time.sleep(2.5)
+    def test_time_going_backwards_resets(self):
+        stamp = self.ready()
+        while len(self.path_after(stamp).poses) <= 5:
+            stamp = self.good_step() or stamp
         long_path = len(self.path.poses)
-        old = rospy.Time.now() - rospy.Duration(30)
+        old = self.stamp() - rospy.Duration(30)
         self.odom(self.x, old - rospy.Duration(0.1))
         self.odom(self.x, old)
-        time.sleep(0.05)
         self.scan(old)
-        time.sleep(0.5)
-        for _ in range(3):
-            self.good_step()
-        time.sleep(2.5)
-        self.assertGreater(long_path, 5)
-        self.assertLess(len(self.path.poses), long_path, "filter was not reset")
+        after = self.ready()
+        # a reset publishes the map and trajectory at its first update
+        self.assertLess(len(self.path_after(after).poses), long_path, "filter was not reset")
 
-    def test_8_save_map_service(self):
-        rospy.wait_for_service("slam/save_map", 5)
+    def test_save_map_service(self):
+        self.ready()
+        rospy.wait_for_service("slam/save_map", 10)
         res = rospy.ServiceProxy("slam/save_map", Trigger)()
         self.assertTrue(res.success, res.message)
-        self.assertTrue(res.message.endswith(".yaml") and os.path.exists(res.message), res.message)
+        # map_file robustness_map is relative: under $ROS_HOME
+        self.assertEqual(res.message, os.path.join(rospkg.get_ros_home(), "robustness_map.yaml"))
         with open(res.message) as f:
-            text = f.read()
-        self.assertIn("resolution: 0.05", text)
+            self.assertIn("resolution: 0.05", f.read())
         self.assertTrue(os.path.exists(res.message[:-5] + ".pgm"))
 
-    def test_9_bad_parameter_stops_at_start_up_naming_it(self):
-        import subprocess
-
+    def test_bad_parameter_stops_at_start_up_naming_it(self):
         for arg, message in (("_particles:=0", "particles=0 must be in [1, 10000]"),
                              ("_map_resolution:=-1", "map_resolution=-1.0 must be in"),
                              ("_sigma_x:=-0.1", "sigma_x=-0.1 must be in"),
@@ -195,40 +246,33 @@ class Robustness(unittest.TestCase):
 
     def spawn_slam(self, name, *params):
         """A second slam.py on the same topics; returns once it has processed a scan."""
-        import subprocess
-
         proc = subprocess.Popen(["rosrun", "assign5", "slam.py", f"__name:={name}", "_particles:=2", *params],
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        got = []
-        sub = rospy.Subscriber(f"{name}/neff", Float64, got.append)
-        deadline = time.time() + 30
-        while not got and time.time() < deadline:
-            self.good_step()
+        got = threading.Event()
+        sub = rospy.Subscriber(f"{name}/neff", Float64, lambda _: got.set())
+        deadline = time.monotonic() + 30
+        while not got.is_set() and time.monotonic() < deadline:
+            self.good_step(1.0)
         sub.unregister()
-        self.assertTrue(got, f"{name} never updated")
+        self.assertTrue(got.is_set(), f"{name} never updated")
         return proc
 
-    def test_10_map_is_saved_on_sigterm_and_sigint(self):
-        import signal
-        import tempfile
-
+    def test_map_is_saved_on_sigterm_and_sigint(self):
         folder = tempfile.mkdtemp()
         for sig in (signal.SIGTERM, signal.SIGINT):
             stem = os.path.join(folder, f"exit_{int(sig)}")
-            proc = self.spawn_slam("exit_slam", "_save_on_exit:=true", f"_map_file:={stem}")
+            proc = self.spawn_slam("exit_slam", f"_map_file:={stem}")   # save_on_exit: true by default
             proc.send_signal(sig)
             out, _ = proc.communicate(timeout=30)
             self.assertTrue(os.path.exists(stem + ".yaml") and os.path.exists(stem + ".pgm"), out)
             rospy.delete_param("/exit_slam")
 
-    def test_11_a_failed_save_is_reported_and_the_old_file_kept(self):
-        import tempfile
-
+    def test_a_failed_save_is_reported_and_the_old_file_kept(self):
         folder = tempfile.mkdtemp()
         blocker = os.path.join(folder, "not_a_folder")
         with open(blocker, "w") as f:
             f.write("a file where the map's folder should be")
-        proc = self.spawn_slam("save_slam", f"_map_file:={blocker}/map")
+        proc = self.spawn_slam("save_slam", f"_map_file:={blocker}/map", "_save_on_exit:=false")
         try:
             rospy.wait_for_service("save_slam/save_map", 10)
             res = rospy.ServiceProxy("save_slam/save_map", Trigger)()
@@ -241,11 +285,19 @@ class Robustness(unittest.TestCase):
             proc.communicate(timeout=30)
             rospy.delete_param("/save_slam")
 
-    def path_end(self):
-        deadline = time.time() + 5
-        while self.path is None and time.time() < deadline:
-            time.sleep(0.1)
-        return self.path.poses[-1].pose.position.x
+    def test_nothing_mapped_is_not_saved(self):
+        proc = subprocess.Popen(["rosrun", "assign5", "slam.py", "__name:=idle_slam", "_scan_topic:=nothing"],
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            rospy.wait_for_service("idle_slam/save_map", 30)
+            res = rospy.ServiceProxy("idle_slam/save_map", Trigger)()
+            self.assertFalse(res.success)
+            self.assertTrue(res.message.startswith("nothing mapped yet: no scan processed (0 received on /nothing"),
+                            res.message)
+        finally:
+            proc.terminate()
+            proc.communicate(timeout=30)
+            rospy.delete_param("/idle_slam")
 
 
 if __name__ == "__main__":

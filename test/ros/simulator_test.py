@@ -2,7 +2,6 @@
 """Graph test of simulator.py (launched by simulator.test with use_sim_time and speed 4)."""
 import math
 import threading
-import time
 import unittest
 
 import rospy
@@ -21,7 +20,7 @@ class SimulatorTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls) -> None:
         rospy.init_node("simulator_test")
-        cls.lock = threading.Lock()
+        cls.lock = threading.Condition()
         cls.scans, cls.odoms, cls.truths, cls.done = [], [], [], []
         cls.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(30.0))
         cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
@@ -29,18 +28,15 @@ class SimulatorTest(unittest.TestCase):
         rospy.Subscriber("odom", Odometry, lambda m: cls._add(cls.odoms, m), queue_size=200)
         rospy.Subscriber("ground_truth", Odometry, lambda m: cls._add(cls.truths, m), queue_size=200)
         rospy.Subscriber("route_done", Bool, lambda m: cls._add(cls.done, m), queue_size=5)
-        # wait on the wall clock: sim time only moves once the simulator publishes /clock
-        end = time.monotonic() + 60.0
-        while time.monotonic() < end and not rospy.is_shutdown():
-            with cls.lock:
-                if len(cls.scans) >= 30 and any(m.data for m in cls.done):
-                    break
-            time.sleep(0.1)
+        # a wall-clock deadline: sim time only moves once the simulator publishes /clock
+        with cls.lock:
+            cls.lock.wait_for(lambda: len(cls.scans) >= 30 and any(m.data for m in cls.done), 60.0)
 
     @classmethod
     def _add(cls, store: list, msg) -> None:
         with cls.lock:
             store.append(msg)
+            cls.lock.notify_all()
 
     def test_scan_format_and_rate(self) -> None:
         scans = list(self.scans)

@@ -21,7 +21,6 @@ from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "src"))
 from assign5.run_report import RunRecorder, evaluate
 
 
@@ -57,8 +56,7 @@ class SlamOnSimulator(unittest.TestCase):
 
     def test_2_map_is_latched_and_matches_its_metadata_and_the_service(self):
         first = wait_message("map", OccupancyGrid)
-        time.sleep(1.0)
-        # a subscriber that comes late still gets the map at once: latched
+        # a subscriber that comes after the map was published still gets it at once: latched
         late = wait_message("map", OccupancyGrid, timeout=1.0)
         meta = wait_message("map_metadata", MapMetaData, timeout=1.0)
         for m in (first, late):
@@ -92,6 +90,7 @@ class SlamOnSimulator(unittest.TestCase):
         self.tf.lookup_transform("map", "base_scan", rospy.Time(0), rospy.Duration(10.0))
 
     def test_4_save_map_service_writes_map_server_files(self):
+        wait_message("map", OccupancyGrid)   # something is mapped
         rospy.wait_for_service("slam/save_map", 5.0)
         res = rospy.ServiceProxy("slam/save_map", Trigger)()
         self.assertTrue(res.success, res.message)
@@ -128,6 +127,7 @@ class SlamOnSimulator(unittest.TestCase):
         from fastslam.io.bag_reader import read_bag
 
         prefix = rospy.get_param("~bag_prefix")
+        self.assertTrue(self.recorder.done.wait(rospy.get_param("~route_timeout", 300.0)), "route never finished")
         subprocess.run(["rosnode", "kill", "/record"], capture_output=True, timeout=30)
         deadline = time.time() + 30
         while (glob.glob(prefix + "*.bag.active") or not glob.glob(prefix + "*.bag")) and time.time() < deadline:

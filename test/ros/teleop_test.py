@@ -1,88 +1,94 @@
 #!/usr/bin/env python3
-"""teleop_key.py in a pseudo-terminal: keys -> ramped cmd_vel, stop, CTRL-C -> zero command and exit 0."""
+"""`roslaunch assign5 teleop.launch` on a pseudo-terminal: keys -> ramped cmd_vel, stop,
+CTRL-C -> a zero command, and the launch ends by itself (exit 0, no error banner).
+
+Every wait is on a condition (messages or output seen) with a deadline.
+"""
 import os
 import pty
-import select
+import re
 import subprocess
-import sys
 import threading
 import time
 import unittest
-from pathlib import Path
 
 import rospy
 import rostest
 from geometry_msgs.msg import Twist
 
-SCRIPT = Path(__file__).resolve().parents[2] / "src" / "teleop_key.py"
-
 
 class TeleopTest(unittest.TestCase):
     def setUp(self) -> None:
         rospy.init_node("teleop_test", anonymous=True)
-        self.lock = threading.Lock()
+        self.cond = threading.Condition()
         self.msgs: list = []
+        self.out = b""
         self.sub = rospy.Subscriber("cmd_vel", Twist, self._on, queue_size=100)
         master, slave = pty.openpty()
         self.master = master
-        self.proc = subprocess.Popen([sys.executable, str(SCRIPT)], stdin=slave, stdout=slave, stderr=slave,
-                                     close_fds=True)
+        # on the rostest master (ROS_MASTER_URI is inherited): roslaunch starts no master of its own
+        self.proc = subprocess.Popen(["roslaunch", "assign5", "teleop.launch"], stdin=slave, stdout=slave,
+                                     stderr=slave, close_fds=True, start_new_session=True)
         os.close(slave)
-        self.out = b""
+        threading.Thread(target=self._drain, daemon=True).start()
 
     def tearDown(self) -> None:
         if self.proc.poll() is None:
-            self.proc.kill()
+            os.killpg(self.proc.pid, 9)
+            self.proc.wait()
+        self.sub.unregister()
         os.close(self.master)
 
     def _on(self, msg: Twist) -> None:
-        with self.lock:
+        with self.cond:
             self.msgs.append((time.monotonic(), msg.linear.x, msg.angular.z))
+            self.cond.notify_all()
 
-    def _read(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            r, _, _ = select.select([self.master], [], [], 0.05)
-            if r:
-                try:
-                    self.out += os.read(self.master, 4096)
-                except OSError:
-                    return
+    def _drain(self) -> None:
+        while True:
+            try:
+                chunk = os.read(self.master, 4096)
+            except OSError:
+                return
+            if not chunk:
+                return
+            with self.cond:
+                self.out += chunk
+                self.cond.notify_all()
 
-    def _wait_msgs(self, n: int, timeout: float = 10.0) -> None:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end and len(self.msgs) < n:
-            self._read(0.1)
+    def wait(self, predicate, timeout: float, what: str) -> None:
+        with self.cond:
+            ok = self.cond.wait_for(predicate, timeout)
+        self.assertTrue(ok, f"no {what} within {timeout} s; output:\n{self.out.decode(errors='replace')[-1500:]}")
+
+    def last(self):
+        with self.cond:
+            return self.msgs[-1][1:]
 
     def test_keys(self) -> None:
-        self._wait_msgs(5)
-        self.assertGreaterEqual(len(self.msgs), 5, "no cmd_vel while idle")
-        self.assertIn(b"CTRL-C to quit", self.out)
-        for key in b"www":
-            os.write(self.master, bytes([key]))
-            self._read(0.15)
+        self.wait(lambda: b"CTRL-C to quit" in self.out and len(self.msgs) >= 5, 30, "banner and idle cmd_vel")
+        os.write(self.master, b"www")
+        self.wait(lambda: b"linear vel 0.03" in self.out, 10, "status after www")
         os.write(self.master, b"a")
-        self._read(1.5)
-        with self.lock:
-            last = self.msgs[-1]
-        self.assertAlmostEqual(last[1], 0.03, places=6)
-        self.assertAlmostEqual(last[2], 0.1, places=6)
-        self.assertIn(b"linear vel 0.03", self.out)
-        # about 10 Hz while idle (the loop's 0.1 s key timeout)
-        with self.lock:
-            recent = [m for m in self.msgs if m[0] > time.monotonic() - 1.0]
-        self.assertTrue(6 <= len(recent) <= 12, f"{len(recent)} messages in 1 s")
+        # the ramp reaches the targets (half a key step per loop)
+        self.wait(lambda: abs(self.msgs[-1][1] - 0.03) < 1e-9 and abs(self.msgs[-1][2] - 0.1) < 1e-9, 10,
+                  "ramped command")
+        # about 10 Hz while idle (the loop's 0.1 s key timeout): count one second of messages
+        with self.cond:
+            start = len(self.msgs)
+            t0 = self.msgs[-1][0]
+        self.wait(lambda: self.msgs[-1][0] - t0 >= 1.0, 5, "a second of messages")
+        with self.cond:
+            rate = sum(1 for m in self.msgs[start:] if m[0] - t0 <= 1.0)
+        self.assertTrue(6 <= rate <= 13, f"{rate} messages in 1 s")
         os.write(self.master, b" ")
-        self._read(0.5)
-        self.assertEqual(self.msgs[-1][1:], (0.0, 0.0))
+        self.wait(lambda: self.msgs[-1][1:] == (0.0, 0.0), 5, "stop")
         os.write(self.master, b"www\x03")
-        end = time.monotonic() + 10.0
-        while self.proc.poll() is None and time.monotonic() < end:
-            self._read(0.1)
-        self.assertEqual(self.proc.poll(), 0, self.out.decode(errors="replace")[-500:])
-        time.sleep(0.3)
-        with self.lock:
-            self.assertEqual(self.msgs[-1][1:], (0.0, 0.0), "CTRL-C must send a zero command")
+        self.assertEqual(self.proc.wait(timeout=30), 0, self.out.decode(errors="replace")[-1500:])
+        text = self.out.decode(errors="replace")
+        self.assertIn("all processes on machine have died, roslaunch will exit", text)
+        self.assertIsNone(re.search(r"Traceback|\[FATAL\]|ERROR|has died", text.replace("have died", "")), text)
+        self.wait(lambda: self.msgs[-1][1:] == (0.0, 0.0), 5, "zero command on CTRL-C")
 
 
 if __name__ == "__main__":

@@ -52,6 +52,50 @@ def test_overrides_and_replace():
         parse_override("particles")
 
 
+def test_slam_gmapping_names_are_read_as_ours_with_a_notice():
+    notices = []
+    cfg = SlamConfig.from_dict({"delta": 0.1, "maxUrange": 3.0, "linearUpdate": 1.0, "angularUpdate": 0.2,
+                                "temporalUpdate": 0.5, "resampleThreshold": 0.5, "lsigma": 0.075, "lskip": 1,
+                                "xmin": -10.0, "xmax": 10.0, "ymin": -5.0, "particles": 100, "srr": 0.01},
+                               notices=notices)
+    assert (cfg.map_resolution, cfg.max_range, cfg.linear_update, cfg.angular_update, cfg.temporal_update,
+            cfg.resample_threshold, cfg.likelihood_sigma) == (0.1, 3.0, 1.0, 0.2, 0.5, 0.5, 0.075)
+    assert cfg.beam_step == 2                 # lskip beams skipped after each used one
+    assert cfg.map_width == 20.0              # xmax - xmin
+    assert cfg.map_height == 105.0            # ymax left at gmapping's default 100
+    assert cfg.particles == 100 and cfg.srr == 0.01   # the same names need nothing
+    assert len(notices) == 10 and all("\n" not in n for n in notices)
+    assert "delta=0.1 (slam_gmapping's) read as map_resolution=0.1" in notices
+    assert "lskip=1 (slam_gmapping's) read as beam_step=2 (every (lskip + 1)-th beam)" in notices
+
+
+def test_slam_gmapping_names_without_counterpart_are_ignored_with_a_hint():
+    notices = []
+    cfg = SlamConfig.from_dict({"ogain": 3.0, "minimumScore": 50, "kernelSize": 1}, notices=notices)
+    assert cfg == SlamConfig()
+    assert len(notices) == 3
+    assert any(n.startswith("minimumScore=50 (slam_gmapping's) has no counterpart here and is ignored: "
+                            "see match_min_score") for n in notices)
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"delta": 0.1, "map_resolution": 0.05}, "delta=0.1 (slam_gmapping's) disagrees with map_resolution=0.05"),
+    ({"xmin": 5.0, "xmax": -5.0}, "xmin=5.0, xmax=-5.0: need numbers with xmin < xmax"),
+    ({"lskip": -1}, "lskip=-1 must be an integer >= 0"),
+    ({"delta": 0.0}, "map_resolution=0.0 must be in [0.005, 1.0]"),
+])
+def test_bad_slam_gmapping_values_name_the_parameter(values, message):
+    with pytest.raises(ConfigError) as err:
+        SlamConfig.from_dict(values, notices=[])
+    assert message in str(err.value)
+
+
+def test_without_a_notice_list_the_notices_are_logged(caplog):
+    with caplog.at_level("WARNING", logger="fastslam.config"):
+        assert SlamConfig.from_dict({"delta": 0.1}).map_resolution == 0.1
+    assert [r.getMessage() for r in caplog.records] == ["delta=0.1 (slam_gmapping's) read as map_resolution=0.1"]
+
+
 def test_match_spread_needs_icp():
     with pytest.raises(ConfigError, match="match_spread"):
         SlamConfig(match_spread="match", match_refine="hill")

@@ -8,13 +8,14 @@ max_odom_speed since the previous message, as two sources interleaved on one top
 give, or a log's made-up stamps) is kept: two such messages with no scan between them
 become one, their mean; a message older than the newest is put in its place. Time
 going backwards resets the filter; unusable scans are dropped with a reason. Each rule
-is counted (`counts`) and warned about at its 1st, 10th, 100th... firing.
+is counted (`counts`) and reported at its 1st, 10th, 100th... firing, as typed events
+(Kidnap, Notice; Reset at every reset) for the caller to log and act on.
 """
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable, Union
 
 import numpy as np
 
@@ -32,6 +33,50 @@ class Dropped(ValueError):
     """A message that is not used; str() says why."""
 
 
+@dataclass(frozen=True)
+class Kidnap:
+    """Odometry jumped farther than max_odom_jump from all of the last second's: the
+    jump is not integrated. count: how many kidnaps so far."""
+
+    jump: float      # [m]
+    max_jump: float  # [m]
+    count: int = 1
+
+    def __str__(self) -> str:
+        text = (f"odometry jumped {self.jump:.2f} m (> max_odom_jump {self.max_jump} m): treating it as a kidnap, "
+                "the jump is not integrated")
+        return text if self.count == 1 else f"odometry kidnap: {self.count} times so far (last: {text})"
+
+
+@dataclass(frozen=True)
+class Reset:
+    """Scan time went backwards: the filter starts again (the caller clears what it keeps
+    from before, e.g. tf and map->odom)."""
+
+    previous: float  # stamp of the last scan before [s]
+    stamp: float     # the scan that went back [s]
+
+    def __str__(self) -> str:
+        return (f"resetting the filter: time went backwards ({self.previous:.2f} -> "
+                f"{self.stamp:.2f} s): bag restarted or looped?")
+
+
+@dataclass(frozen=True)
+class Notice:
+    """A stream rule fired (odometry out of order, out of step): kept, but worth knowing;
+    reported at its 1st, 10th, 100th... firing, so thousands are an alarm, not a flood."""
+
+    rule: str
+    detail: str
+    count: int = 1
+
+    def __str__(self) -> str:
+        return self.detail if self.count == 1 else f"{self.rule}: {self.count} times so far (last: {self.detail})"
+
+
+Event = Union[Kidnap, Reset, Notice]
+
+
 def drop_key(why: str) -> str:
     """The kind of drop a reason names, to count by: without the detail after a colon
     or in parentheses, and with numbers replaced, so "latest odometry is +0.61 s" and "+0.72 s" count as one."""
@@ -45,7 +90,7 @@ class Frontend:
     odom_buffer: float = 10.0    # [s] of odometry kept
     max_odom_speed: float = 5.0  # [m/s] a step between two odometry messages faster than this is out of step
     max_odom_jump: float = 5.0   # [m] farther from the recent odometry is a kidnap (the logs step <= 3.5 m)
-    events: list[str] = field(default_factory=list)  # warnings for the caller to log, oldest first
+    events: list[Event] = field(default_factory=list)  # for the caller to log and act on, oldest first
     counts: dict[str, int] = field(default_factory=dict)  # how often each rule fired
 
     def __post_init__(self) -> None:
@@ -69,23 +114,24 @@ class Frontend:
         if t < latest[0]:
             # older than the newest: in its place if the buffer still covers it
             if self.odom.insert(t, pose):
-                self._fire("odometry out of order", f"odometry stamped {latest[0] - t:.3f} s before the newest "
-                           "message: put in its place")
+                self._fire("odometry out of order", lambda n: Notice(
+                    "odometry out of order", f"odometry stamped {latest[0] - t:.3f} s before the newest "
+                    "message: put in its place", n))
             return
         recent = self.odom.since(t - JUMP_WINDOW)
         jump = float(np.min(np.hypot(recent[:, 0] - pose[0], recent[:, 1] - pose[1])))
         if jump > self.max_odom_jump:
-            self._fire("odometry kidnap", f"odometry jumped {jump:.2f} m (> max_odom_jump {self.max_odom_jump} m): "
-                       "treating it as a kidnap, the jump is not integrated")
+            self._fire("odometry kidnap", lambda n: Kidnap(jump, self.max_odom_jump, n))
             self.odom.clear()
             self._rebase = True
             self._accept(t, pose)
             return
         step = float(np.hypot(*(pose[:2] - latest[1][:2])))
         if step > self.max_odom_speed * max(t - latest[0], 1e-3):
-            self._fire("odometry out of step", f"odometry stepped {step:.3f} m in {t - latest[0]:.3f} s "
-                       f"(> max_odom_speed {self.max_odom_speed} m/s): two sources on one topic, or wrong stamps? "
-                       "Kept; merged with the previous message when no scan lies between them")
+            self._fire("odometry out of step", lambda n: Notice(
+                "odometry out of step", f"odometry stepped {step:.3f} m in {t - latest[0]:.3f} s "
+                f"(> max_odom_speed {self.max_odom_speed} m/s): two sources on one topic, or wrong stamps? "
+                "Kept; merged with the previous message when no scan lies between them", n))
             if not self._scan_since_odom:
                 self.odom.merge_latest(t, pose)
                 return
@@ -95,14 +141,12 @@ class Frontend:
         self.odom.add(t, pose)
         self._scan_since_odom = False
 
-    def _fire(self, rule: str, detail: str) -> None:
-        """Counts a rule; warns at its 1st, 10th, 100th... firing, so thousands are an alarm, not a flood."""
+    def _fire(self, rule: str, event: Callable[[int], Event]) -> None:
+        """Counts a rule; reports it (event(count)) at its 1st, 10th, 100th... firing."""
         n = self.counts.get(rule, 0) + 1
         self.counts[rule] = n
-        if n == 1:
-            self.events.append(detail)
-        elif n == 10 ** int(round(np.log10(n))):
-            self.events.append(f"{rule}: {n} times so far (last: {detail})")
+        if n == 10 ** int(round(np.log10(n))):
+            self.events.append(event(n))
 
     def add_scan(self, scan: Scan) -> StepInfo:
         """Runs one filter step with the odometry at the scan's stamp; raises Dropped."""
@@ -113,8 +157,7 @@ class Frontend:
         if problem:
             raise Dropped(problem)
         if self.last_stamp is not None and t < self.last_stamp:
-            self.events.append(f"resetting the filter: time went backwards ({self.last_stamp:.2f} -> "
-                               f"{t:.2f} s): bag restarted or looped?")
+            self.events.append(Reset(self.last_stamp, t))
             self.reset()
         odom = self.odom.at(t, self.odom_timeout)
         if odom is None:

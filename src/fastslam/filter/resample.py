@@ -24,6 +24,13 @@ def neff(weights: NDArray[np.float64]) -> float:
     return float(1.0 / np.sum(np.square(weights)))
 
 
+def entropy(weights: NDArray[np.float64]) -> float:
+    """Entropy -sum(w ln w) of normalised weights [nat], slam_gmapping's ~entropy:
+    0 when one particle holds all the weight, ln N when all weigh the same."""
+    w = weights[weights > 0.0]
+    return float(-np.sum(w * np.log(w)))
+
+
 def slot_parents(indices: NDArray[np.intp]) -> NDArray[np.intp]:
     """Assigns the children of a resampling to slots so that maps move least.
 

@@ -19,7 +19,7 @@ from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
 from fastslam.filter.proposal import gate_match, match_request
-from fastslam.filter.resample import low_variance_indices, neff, slot_parents
+from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
@@ -46,6 +46,7 @@ class StepInfo:
     grew: bool = False
     clipped: bool = False
     matched: int = 0  # particles whose pose came from the scan matcher
+    entropy: float = 0.0  # of the weights before resampling [nat]
 
 
 class FastSlam:
@@ -115,7 +116,8 @@ class FastSlam:
         self.history.append(scan.stamp, self.poses, parent)
         self.updates += 1
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
-                        seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched)
+                        seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
+                        entropy=entropy(w))
 
     # -- the named steps -------------------------------------------------------------
     def _anchor(self, odom: NDArray[np.float64]) -> None:

@@ -106,16 +106,30 @@ class Lidar:
         """Measured ranges (M,) from sensor pose (3,) (world frame) along angles (M,) (sensor frame).
 
         Gaussian noise sigma [m] is added when rng is given; noisy values are clipped to
-        [range_min, range_max]. A true distance outside [range_min, range_max] is no return: inf.
+        [range_min, range_max]. A true distance beyond range_max is no return: inf. One
+        closer than range_min comes out as that distance, below range_min, as Gazebo's
+        laser gives it: a reading consumers drop, never a far no-return that would clear
+        free space through the wall the robot touches.
         """
         true = cast_rays(self.world, pose, angles)
         ranges = true.copy()
         if rng is not None and sigma > 0.0:
             ranges = np.clip(ranges + rng.normal(0.0, sigma, ranges.shape), range_min, range_max)
-        ranges[(true < range_min) | (true > range_max)] = np.inf
+        ranges[true > range_max] = np.inf
+        short = true < range_min
+        ranges[short] = true[short]
         return ranges
 
     def scan(self, base_pose: ArrayLike, rng: np.random.Generator | None = None) -> Array:
         """A full scan (num_beams,) from the robot at base_pose (3,), with the configured noise."""
         return self.cast(self.sensor_pose(base_pose), self.angles, self.range_min, self.range_max,
                          rng=rng, sigma=self.sigma)
+
+
+def driver_ranges(ranges: Array, range_min: float, no_return: str) -> Array:
+    """Readings (M,) as a driver publishes them. "inf" (Gazebo): as cast gives them;
+    "zero" (the real LDS-01 driver): no return and too close both read 0.0."""
+    if no_return == "inf":
+        return ranges
+    with np.errstate(invalid="ignore"):
+        return np.where(~np.isfinite(ranges) | (ranges < range_min), 0.0, ranges)

@@ -19,7 +19,7 @@ from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
 from fastslam.geometry import relative
 from fastslam.sim.lidar import Lidar
-from fastslam.sim.robot import DiffDrive, OdometryModel
+from fastslam.sim.robot import MAX_ANGULAR, MAX_LINEAR, DiffDrive, OdometryModel
 from fastslam.sim.route import RouteFollower
 from fastslam.sim.world import World
 
@@ -41,8 +41,8 @@ class SimConfig:
     odom_rate: float = _num(30.0, 0.1, 2000.0, "odom, tf and ground_truth rate [Hz]")
     scan_rate: float = _num(5.0, 0.1, 2000.0, "laser rate [Hz] (LDS-01: 5)")
     cmd_vel_timeout: float = _num(1.0, 0.0, 3600.0, "stop after this long without cmd_vel; 0 = never [s]")
-    max_linear: float = _num(0.22, 0.0, 10.0, "[m/s] burger limit")
-    max_angular: float = _num(2.84, 0.0, 100.0, "[rad/s] burger limit")
+    max_linear: float = _num(MAX_LINEAR, 0.0, 10.0, "[m/s] burger limit")
+    max_angular: float = _num(MAX_ANGULAR, 0.0, 100.0, "[rad/s] burger limit")
     robot_radius: float = _num(0.105, 0.0, 2.0, "[m] collision disc")
     num_beams: int = _num(360, 3, 100000, "beams per revolution")
     range_min: float = _num(0.12, 0.0, 100.0, "[m]")
@@ -84,6 +84,7 @@ class Tick:
     odom_due: bool
     scan: NDArray[np.float64] | None = None
     route_finished: bool = False
+    bumped: bool = False   # the robot ran into a wall in this tick (first tick of a contact only)
 
 
 class Simulation:
@@ -109,6 +110,7 @@ class Simulation:
                                     max_angular=cfg.max_angular) if route is not None else None)
         self._cmd = (0.0, 0.0)
         self._cmd_time = -math.inf
+        self._touching = False
         self.odom_twist = (0.0, 0.0)    # (v, w) as the odometry measured it over the last odom period
 
     @property
@@ -138,7 +140,10 @@ class Simulation:
         else:
             v, w = self._cmd
         self.robot.step(v, w, self.dt)
-        tick = Tick(t=self.time, odom_due=self._due(self.cfg.odom_rate), route_finished=finished)
+        bumped = self.robot.collided and not self._touching
+        # contact lasts while the robot pushes on the wall or stands still against it
+        self._touching = self.robot.collided or (self._touching and v == 0.0)
+        tick = Tick(t=self.time, odom_due=self._due(self.cfg.odom_rate), route_finished=finished, bumped=bumped)
         if tick.odom_due:
             before = self.odom.pose.copy()
             after = self.odom.update(self.robot.pose)

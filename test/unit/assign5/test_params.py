@@ -1,9 +1,11 @@
 """The SLAM node's parameters: ROS-only settings in NodeConfig, the algorithm's in SlamConfig."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from assign5.params import CORE_KEYS, NODE_KEYS, NodeConfig, split_params
+from assign5.params import CORE_KEYS, NODE_KEYS, NodeConfig, map_path, split_params
 from fastslam.config import ConfigError, SlamConfig
 
 
@@ -43,3 +45,23 @@ def test_numbers_and_flags_are_coerced_and_empty_params_give_the_defaults():
 def test_every_key_has_one_home():
     assert not NODE_KEYS & CORE_KEYS
     assert {"scan_topic", "map_frame", "odom_timeout"} <= NODE_KEYS and "particles" in CORE_KEYS
+
+
+def test_slam_gmapping_names_reach_the_node_and_the_core():
+    notices: list[str] = []
+    node, core = split_params({"delta": 0.1, "map_update_interval": 5.0, "throttle_scans": 1, "particles": 30},
+                              notices)
+    assert core.map_resolution == 0.1 and core.particles == 30 and node.map_update_interval == 5.0
+    assert len(notices) == 2
+    assert any(n.startswith("throttle_scans=1 (slam_gmapping's) has no counterpart") for n in notices)
+
+
+def test_map_file_default_lies_in_ros_home(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "rh"))
+    assert map_path(NodeConfig().map_file) == str(tmp_path / "rh" / "assign5_map")
+    assert (tmp_path / "rh").is_dir()
+    assert map_path("/abs/map") == "/abs/map"
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert map_path("~/maps/x") == str(tmp_path / "maps" / "x")
+    monkeypatch.delenv("ROS_HOME")
+    assert map_path("m") == str(tmp_path / ".ros" / "m")     # rospkg's default

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fastslam.filter.resample import low_variance_indices, neff, slot_parents
+from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
 
 
 def test_style_guide_example_weights_0_1_0_resample_to_1_1_1():
@@ -66,3 +66,10 @@ def test_neff():
     assert neff(np.full(4, 0.25)) == pytest.approx(4.0)
     assert neff(np.array([1.0, 0, 0, 0])) == pytest.approx(1.0)
     assert neff(np.array([0.5, 0.25, 0.25])) == pytest.approx(1 / 0.375)   # 1 / (0.25 + 2 * 0.0625)
+
+
+def test_entropy_of_the_weights_by_hand():
+    assert entropy(np.array([0.0, 1.0, 0.0])) == 0.0                 # one particle holds all
+    assert entropy(np.full(4, 0.25)) == pytest.approx(np.log(4))    # uniform: ln N
+    # 0.5 ln 2 + 2 * 0.25 ln 4 = 1.5 ln 2
+    assert entropy(np.array([0.5, 0.25, 0.25])) == pytest.approx(1.5 * np.log(2))

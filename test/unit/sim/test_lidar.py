@@ -4,8 +4,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
-from fastslam.sim.lidar import Lidar, cast_rays, ray_circles, ray_segments
+from fastslam.sim.lidar import Lidar, cast_rays, driver_ranges, ray_circles, ray_segments
 from fastslam.sim.world import world_from_dict
 
 
@@ -51,7 +52,11 @@ def test_range_limits_and_noise_seeded() -> None:
     w = world_from_dict({"segments": [[[0.1, -1], [0.1, 1]], [[-5, -1], [-5, 1]], [[-1, 1.0], [1, 1.0]]]})
     lidar = Lidar(w, mount=(0.0, 0.0, 0.0))
     r = lidar.cast([0, 0, 0], np.array([0.0, math.pi, math.pi / 2]), 0.12, 3.5)
-    assert np.isinf(r[0]) and np.isinf(r[1]) and r[2] == 1.0   # too close, too far, exact
+    # too close: the distance, below range_min (as Gazebo); too far: no return; exact
+    assert r[0] == pytest.approx(0.1) and np.isinf(r[1]) and r[2] == 1.0
+    # as the LDS-01 driver publishes them: 0.0 for both too close and no return
+    np.testing.assert_array_equal(driver_ranges(r, 0.12, "zero"), [0.0, 0.0, 1.0])
+    assert driver_ranges(r, 0.12, "inf") is r
     r1 = lidar.cast([0, 0, 0], np.full(1000, math.pi / 2), 0.12, 3.5, rng=np.random.default_rng(0), sigma=0.01)
     r2 = lidar.cast([0, 0, 0], np.full(1000, math.pi / 2), 0.12, 3.5, rng=np.random.default_rng(0), sigma=0.01)
     np.testing.assert_array_equal(r1, r2)

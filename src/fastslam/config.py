@@ -115,6 +115,12 @@ class SlamConfig:
                                "particle's motion sample")
     match_gate: float = _num(0.0, 0.0, 100.0, "distrust a match farther from the noise-free motion prediction than "
                              "this many std-devs of the motion model (match_prior: motion); 0 = off")
+    track_scans: bool = field(default=False, metadata={
+        "doc": "proposal: scan_match: between updates, match each scan against the best particle's map (no map "
+               "write, no resampling): map->odom and trajectory_scans follow the scans, not the raw odometry"})
+    track_search: builtins.str = _choice("refine", ("refine", "search"),
+                                         "track_scans: refine: ICP from the odometry's prediction only; search: "
+                                         "the whole matcher (window round the prediction, then ICP)")
     # Update gating (improved mode); zeros process every scan as the assignment does
     linear_update: float = _num(0.0, 0.0, 100.0, "process a scan after this much travel [m]")
     angular_update: float = _num(0.0, 0.0, 2 * math.pi, "... or this much rotation [rad]")
@@ -129,6 +135,8 @@ class SlamConfig:
         for name in ("match_gate", "match_window"):
             if getattr(self, name) > 0 and self.match_prior != "motion":
                 raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
+        if self.track_scans and self.proposal != "scan_match":
+            raise ConfigError("track_scans needs proposal=scan_match (it uses the scan matcher)")
         if self.match_spread == "match" and self.match_refine != "icp":
             raise ConfigError("match_spread=match needs match_refine=icp (the hill climb has no covariance)")
         for name in ("map_width", "map_height"):

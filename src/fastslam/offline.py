@@ -41,7 +41,7 @@ from fastslam.eval.trajectory import align_2d, apply_alignment, match_by_time, s
 from fastslam.filter.frontend import Dropped, Frontend, drop_key
 from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.slam import FastSlam
-from fastslam.geometry import compose, inverse, relative
+from fastslam.geometry import compose, relative
 from fastslam.io.bag_reader import REFERENCE_TOPIC, BagData, read_bag
 from fastslam.io.map_files import save_map
 from fastslam.io.records import BagError, OdomRecord, ScanRecord
@@ -93,13 +93,13 @@ class OfflineResult:
         rows = rows[rows[:, 8] == rows[-1, 8]] if len(rows) else rows
         if not len(rows):
             return np.zeros((0, 4))
-        t, odom = rows[:, 0], rows[:, 1:4]
+        t, live = rows[:, 0], rows[:, 4:7]
         k = rows[:, 7].astype(np.intp)
         done = rows[:, 9] > 0
         traj = self.slam.trajectory()
         at_update = np.empty((len(traj), 3))
-        at_update[k[done]] = odom[done]          # odometry of each processed scan
-        poses = compose(traj[k, 1:], relative(at_update[k], odom))
+        at_update[k[done]] = live[done]          # the live pose at each processed scan
+        poses = compose(traj[k, 1:], relative(at_update[k], live))
         poses[done] = traj[k[done], 1:]          # exactly, not through a zero motion
         return np.concatenate([t[:, None], poses], axis=1)
 
@@ -118,7 +118,6 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
     front = Frontend(slam)
     result = OfflineResult(slam=slam)
     mount = (data.mount.x, data.mount.y, data.mount.yaw)
-    map_to_odom = np.zeros(3)
     start = time.perf_counter()
     bar = tqdm(total=len(data.scans), unit="scan", disable=not progress, file=sys.stderr, dynamic_ncols=True,
                mininterval=0.5)
@@ -140,8 +139,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
             if info.processed:
                 result.updates += 1
                 result.update_ms.append(1000.0 * info.seconds)
-                map_to_odom = compose(slam.poses[slam.best], inverse(odom))
-            live = slam.poses[slam.best] if info.processed else compose(map_to_odom, odom)
+            live = slam.live_pose
             result.scan_rows.append([rec.t, *odom.tolist(), *live.tolist(), slam.updates - 1, front.resets,
                                      float(info.processed)])
         except Dropped as err:

@@ -144,6 +144,51 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     return Match(poses=pose, trusted=trusted, covariance=cov, score=score)
 
 
+def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
+                 prior: tuple[NDArray[np.float64], NDArray[np.float64]]) -> Match:
+    """The last stage of match_poses alone (ICP), from poses (N, 3) already within a few
+    cells of the match: tracking a pose from scan to scan between updates, where the
+    odometry of one scan errs by centimetres and no search is needed.
+
+    Trusted as match_poses trusts: min_score of the end points with an occupied cell
+    within one cell, and (free_space) at most max_free of them on known free cells with
+    none occupied near. prior: (centre (N, 3), std-devs (3,)) as for match_poses.
+    """
+    n = len(poses)
+    if np.count_nonzero(beams.hit) < MIN_BEAMS:
+        return Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
+    sel = spread_returns(beams, params.beams)
+    local = end_points(beams, sel)
+    centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
+    pose, info = icp(grid, poses, local, surface_normals(beams, sel), centre, spread)
+    occupied, free = neighbourhood_flags(grid, pose, local)
+    score = occupied.mean(axis=1)
+    trusted = score >= params.min_score
+    if params.free_space:
+        trusted &= free.mean(axis=1) <= params.max_free
+    return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score)
+
+
+def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64]
+                        ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """(N, M) each, for the end points local (M, 2) seen from pose (N, 3): whether an
+    occupied cell lies within one cell of the end point's, and whether its cell is known
+    free with none occupied near (outside the grid: neither)."""
+    h, w = grid.shape
+    x, y = transform_points(pose, local)
+    ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
+    iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
+    inside = (ix >= 1) & (ix < w - 1) & (iy >= 1) & (iy < h - 1)
+    base = (np.arange(len(pose))[:, None] * h + np.clip(iy, 1, h - 2)) * w + np.clip(ix, 1, w - 2)
+    cells = grid.cells_flat()
+    near = np.zeros(base.shape, dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            near |= cells.take(base + (dy * w + dx)) > 0
+    free = inside & ~near & (cells.take(base) < 0)
+    return inside & near, free
+
+
 def _flags_at(pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],
               w_origin: NDArray[np.float64], res: float) -> NDArray[np.int8]:
     """(N, M) flags of the 2x2-pooled maps half (N, h, w), lower-left corner w_origin,

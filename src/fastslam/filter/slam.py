@@ -8,7 +8,7 @@ proposal after the motion, likelihood log-weights, resampling only when Neff is 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -188,7 +188,7 @@ class FastSlam:
                else odometry_std(self._match_odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
         self._match_odom = odom
         one = predicted[None, :]
-        start, params, prior = match_request(cfg, self._match_params, one, one, std)
+        start, params, prior = match_request(cfg, replace(self._match_params, beams=cfg.track_beams), one, one, std)
         assert prior is not None
         grid, beams = self.grid.view(self.best), select_beams(scan, cfg)
         found = (refine_poses(grid, start, beams, params, prior) if cfg.track_search == "refine"

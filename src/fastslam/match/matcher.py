@@ -59,13 +59,14 @@ class MatchParams:
     covariance: bool = False     # return the ICP's covariance (refine "icp" only)
     free_space: bool = False     # end points in known free space count against a candidate, and
     max_free: float = 1.0        # a match with a larger share of them is not trusted
+    icp_beams: int = 0           # ICP (refine "icp") on at most this many returns; 0: beams
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
-                   max_free=cfg.match_max_free)
+                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams)
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,8 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     # 3. finer than a cell
     cov = None
     if params.refine == "icp":
-        pose, info = icp(grid, pose, local, surface_normals(beams, sel), centre, spread)
+        fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
+        pose, info = icp(grid, pose, end_points(beams, fine), surface_normals(beams, fine), centre, spread)
         if params.covariance:
             cov = inv3(info)
     else:
@@ -157,7 +159,7 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     n = len(poses)
     if np.count_nonzero(beams.hit) < MIN_BEAMS:
         return Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
-    sel = spread_returns(beams, params.beams)
+    sel = spread_returns(beams, max(params.beams, params.icp_beams))
     local = end_points(beams, sel)
     centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
     pose, info = icp(grid, poses, local, surface_normals(beams, sel), centre, spread)

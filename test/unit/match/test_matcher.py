@@ -144,3 +144,21 @@ def test_refine_poses_trusts_nothing_on_an_empty_map(scan360):
     match = refine_poses(slam.grid, start, select_beams(scan360(np.zeros(3)), cfg), MatchParams.from_config(cfg),
                          (start, np.full(3, 0.05)))
     assert not match.trusted.any() and match.score is not None and match.score[0] == 0.0
+
+
+def test_icp_on_more_end_points_than_the_search(mapped_room, scan360):
+    slam, _ = mapped_room()
+    truth = np.array([0.2, -0.3, 0.4])
+    start = np.tile(truth + [0.03, -0.02, 0.02], (3, 1))
+    covs = []
+    for icp_beams in (0, 360):                      # 0: the search's 60 end points
+        cfg = slam.cfg.replace(match_refine="icp", match_spread="match", match_beams=60, match_icp_beams=icp_beams)
+        params = MatchParams.from_config(cfg)
+        assert params.icp_beams == icp_beams
+        match = match_poses(slam.grid, start, select_beams(scan360(truth), cfg), params,
+                            prior=(start, np.full(3, 0.5)))
+        assert match.trusted.all() and np.abs(match.poses[:, :2] - truth[:2]).max() < 0.015
+        assert match.covariance is not None
+        covs.append(match.covariance[:, 0, 0])
+    # six times the end points (the weak prior aside): about a sixth of the variance
+    assert np.all(covs[1] < covs[0] / 4) and np.all(covs[1] > covs[0] / 8)

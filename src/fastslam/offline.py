@@ -10,10 +10,11 @@ slam.py node, and writes DIR/map.pgm + map.yaml (map_server format), map.png,
 stats.json, the effective config.yaml and three trajectories (header stamps;
 `t x y theta`, or TUM's `t x y z qx qy qz qw` with --format tum):
 trajectory.txt, the final best particle, one pose per processed scan;
-trajectory_scans.txt, the same path at every scan the filter saw, the odometry since
-the last processed scan composed onto it in between; live_poses.txt, one pose per
+trajectory_scans.txt, the same path at every scan the filter saw, the motion since
+the last processed scan composed onto it in between (the odometry's, or with
+track_scans the scan matcher's against the best map); live_poses.txt, one pose per
 scan as map->odom gave it during the run: the best particle at the last processed
-scan, composed with the odometry since.
+scan, moved since by that same motion (FastSlam.live_pose, as the node publishes it).
 
 With a reference, the bag's /ground_truth (nav_msgs/Odometry, as the simulator records
 it) or ``--reference FILE`` (``t x y theta`` or TUM lines), stats.json gets the ATE and
@@ -87,8 +88,8 @@ class OfflineResult:
 
     def scan_trajectory(self) -> NDArray[np.float64]:
         """(S, 4) rows t, x, y, theta: the final best particle's path at every scan of the
-        filter's last life; between processed scans, the odometry since the last one
-        composed onto its pose."""
+        filter's last life; between processed scans, the live pose's motion since the
+        last one (odometry, or tracked with track_scans) composed onto its pose."""
         rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
         rows = rows[rows[:, 8] == rows[-1, 8]] if len(rows) else rows
         if not len(rows):
@@ -171,13 +172,14 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     write_trajectory(out / "trajectory.txt", traj[:, 0], traj[:, 1:], fmt=fmt,
                      comment="final best particle, one pose per processed scan")
     every = result.scan_trajectory()
+    since = "the scans' matches against the best map" if cfg.track_scans else "the odometry"
     write_trajectory(out / "trajectory_scans.txt", every[:, 0], every[:, 1:], fmt=fmt,
                      comment="final best particle at every scan: its pose at the last processed scan "
-                             "composed with the odometry since")
+                             f"composed with the motion since ({since})")
     live = result.live_poses()
     write_trajectory(out / "live_poses.txt", live[:, 0], live[:, 1:], fmt=fmt,
                      comment="live map->odom composed with the odometry, one pose per scan: the best "
-                             "particle at the last processed scan composed with the odometry since")
+                             f"particle at the last processed scan moved since by {since}")
     paths = {"estimate": (traj[:, 1:3], ESTIMATE_RGB)}
     if result.reference is not None:
         result.accuracy = _accuracy(out, result.reference, traj)

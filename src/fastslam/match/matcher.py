@@ -148,21 +148,35 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
 
 def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
                  prior: tuple[NDArray[np.float64], NDArray[np.float64]]) -> Match:
-    """The last stage of match_poses alone (ICP), from poses (N, 3) already within a few
-    cells of the match: tracking a pose from scan to scan between updates, where the
-    odometry of one scan errs by centimetres and no search is needed.
+    """A short search, then the last stage of match_poses (ICP), from poses (N, 3) within
+    a few cells of the match: tracking a pose from scan to scan between updates, where
+    the odometry of one scan errs by centimetres but its heading by a degree or two
+    (CSAIL), which moves far end points beyond ICP's reach.
 
-    Trusted as match_poses trusts: min_score of the end points with an occupied cell
-    within one cell, and (free_space) at most max_free of them on known free cells with
-    none occupied near. prior: (centre (N, 3), std-devs (3,)) as for match_poses.
+    The search turns each pose by up to params.theta_range in steps that move the far
+    end points two cells, and keeps the heading with the most end points within one
+    cell of an occupied one (the smallest turn among equals). Trusted as match_poses
+    trusts: min_score of the end points within one cell of an occupied one, and
+    (free_space) at most max_free of them on known free cells with none occupied near.
+    prior: (centre (N, 3), std-devs (3,)) as for match_poses.
     """
     n = len(poses)
     if np.count_nonzero(beams.hit) < MIN_BEAMS:
         return Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
+    coarse = end_points(beams, spread_returns(beams, params.beams))
+    far = float(np.percentile(np.hypot(coarse[:, 0], coarse[:, 1]), 90))
+    step = 2 * grid.resolution / max(far, 2 * grid.resolution)
+    turns = np.arange(-1, 2) * step if params.theta_range <= 0 else \
+        np.arange(-math.ceil(params.theta_range / step), math.ceil(params.theta_range / step) + 1) * step
+    cand = np.repeat(poses[:, None, :], len(turns), axis=1)
+    cand[..., 2] += turns
+    on_wall, _ = neighbourhood_flags(grid, cand, coarse)                 # (N, A, M)
+    best = np.argmax(on_wall.sum(axis=2) - 1e-3 * np.abs(turns) / step, axis=1)
+    start = cand[np.arange(n), best]
     sel = spread_returns(beams, max(params.beams, params.icp_beams))
     local = end_points(beams, sel)
     centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
-    pose, info = icp(grid, poses, local, surface_normals(beams, sel), centre, spread)
+    pose, info = icp(grid, start, local, surface_normals(beams, sel), centre, spread)
     occupied, free = neighbourhood_flags(grid, pose, local)
     score = occupied.mean(axis=1)
     trusted = score >= params.min_score
@@ -173,15 +187,16 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
 
 def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64]
                         ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-    """(N, M) each, for the end points local (M, 2) seen from pose (N, 3): whether an
-    occupied cell lies within one cell of the end point's, and whether its cell is known
-    free with none occupied near (outside the grid: neither)."""
+    """(N, ..., M) each, for the end points local (M, 2) seen from the poses (N, ..., 3)
+    on map n: whether an occupied cell lies within one cell of the end point's, and
+    whether its cell is known free with none occupied near (outside the grid: neither)."""
     h, w = grid.shape
     x, y = transform_points(pose, local)
     ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
     iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
     inside = (ix >= 1) & (ix < w - 1) & (iy >= 1) & (iy < h - 1)
-    base = (np.arange(len(pose))[:, None] * h + np.clip(iy, 1, h - 2)) * w + np.clip(ix, 1, w - 2)
+    maps = np.arange(len(pose)).reshape((-1,) + (1,) * (x.ndim - 1))
+    base = (maps * h + np.clip(iy, 1, h - 2)) * w + np.clip(ix, 1, w - 2)
     cells = grid.cells_flat()
     near = np.zeros(base.shape, dtype=bool)
     for dy in (-1, 0, 1):

@@ -162,3 +162,17 @@ def test_icp_on_more_end_points_than_the_search(mapped_room, scan360):
         covs.append(match.covariance[:, 0, 0])
     # six times the end points (the weak prior aside): about a sixth of the variance
     assert np.all(covs[1] < covs[0] / 4) and np.all(covs[1] > covs[0] / 8)
+
+
+def test_refine_poses_finds_a_heading_beyond_icps_reach(mapped_room, scan360):
+    # 17 degrees off: the room's far walls (2.5 m) move 75 cm, far beyond ICP's 2-cell kernel
+    slam, _ = mapped_room()
+    truth = np.array([0.1, -0.1, 0.2])
+    start = truth + np.array([[0.02, 0.0, 0.3]])
+    errors = []
+    for theta_range in (0.5, 0.0):                  # 0: three headings one step apart
+        cfg = slam.cfg.replace(match_refine="icp", match_theta_range=theta_range)
+        match = refine_poses(slam.grid.view(0), start, select_beams(scan360(truth), cfg),
+                             MatchParams.from_config(cfg), (start, np.array([0.05, 0.05, 0.2])))
+        errors.append(abs(match.poses[0, 2] - truth[2]))
+    assert errors[0] < 0.002 and errors[1] > 0.1   # measured 0.0003 and 0.19 rad

@@ -60,7 +60,8 @@ def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 def match_errors(cfg: SlamConfig, scans: Iterator[tuple[np.ndarray, Scan]], seed: int = 0) -> np.ndarray:
     """(K, 3) matched - reference (along, across [m], heading [rad]) of trusted matches."""
     # The map is written at the reference poses: one particle moved exactly by them.
-    mapper = FastSlam(cfg.replace(particles=1, proposal="odometry", motion_model="odometry", toggle_noise=0))
+    mapper = FastSlam(cfg.replace(particles=1, proposal="odometry", motion_model="odometry", toggle_noise=0,
+                                track_scans=False))
     params = MatchParams.from_config(cfg)
     rng = np.random.default_rng(seed)
     alphas = (cfg.srr, cfg.srt, cfg.str, cfg.stt)

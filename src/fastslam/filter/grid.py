@@ -118,6 +118,19 @@ class GridMaps:
         for slot in moved:
             np.copyto(self.logodds[slot], self.logodds[parent[slot]])
 
+    def view(self, n: int) -> GridMaps:
+        """A GridMaps of particle n's map alone, sharing its cells (no copy): what reads
+        it (the matcher tracking one particle between updates) sees that map only."""
+        one = GridMaps.__new__(GridMaps)
+        one.resolution, one.origin, one.scale = self.resolution, self.origin.copy(), self.scale
+        one.logodds = self.logodds[n:n + 1]
+        return one
+
+    def cells_flat(self) -> NDArray[np.int8]:
+        """Every map's cells as one flat array (a view), index (n * H + iy) * W + ix:
+        for gathers of many cells of many maps at once."""
+        return self.logodds.reshape(-1)
+
     def probability(self, n: int) -> NDArray[np.float64]:
         """(H, W) occupancy probability of particle n's map."""
         return 1.0 / (1.0 + np.exp(-self.logodds[n] * self.scale))

@@ -59,13 +59,14 @@ class MatchParams:
     covariance: bool = False     # return the ICP's covariance (refine "icp" only)
     free_space: bool = False     # end points in known free space count against a candidate, and
     max_free: float = 1.0        # a match with a larger share of them is not trusted
+    icp_beams: int = 0           # ICP (refine "icp") on at most this many returns; 0: beams
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
-                   max_free=cfg.match_max_free)
+                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams)
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,8 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     # 3. finer than a cell
     cov = None
     if params.refine == "icp":
-        pose, info = icp(grid, pose, local, surface_normals(beams, sel), centre, spread)
+        fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
+        pose, info = icp(grid, pose, end_points(beams, fine), surface_normals(beams, fine), centre, spread)
         if params.covariance:
             cov = inv3(info)
     else:
@@ -142,6 +144,66 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     if params.free_space:
         trusted &= (flags < 0).mean(axis=1) <= params.max_free
     return Match(poses=pose, trusted=trusted, covariance=cov, score=score)
+
+
+def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
+                 prior: tuple[NDArray[np.float64], NDArray[np.float64]]) -> Match:
+    """A short search, then the last stage of match_poses (ICP), from poses (N, 3) within
+    a few cells of the match: tracking a pose from scan to scan between updates, where
+    the odometry of one scan errs by centimetres but its heading by a degree or two
+    (CSAIL), which moves far end points beyond ICP's reach.
+
+    The search turns each pose by up to params.theta_range in steps that move the far
+    end points two cells, and keeps the heading with the most end points within one
+    cell of an occupied one (the smallest turn among equals). Trusted as match_poses
+    trusts: min_score of the end points within one cell of an occupied one, and
+    (free_space) at most max_free of them on known free cells with none occupied near.
+    prior: (centre (N, 3), std-devs (3,)) as for match_poses.
+    """
+    n = len(poses)
+    if np.count_nonzero(beams.hit) < MIN_BEAMS:
+        return Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
+    coarse = end_points(beams, spread_returns(beams, params.beams))
+    far = float(np.percentile(np.hypot(coarse[:, 0], coarse[:, 1]), 90))
+    step = 2 * grid.resolution / max(far, 2 * grid.resolution)
+    turns = np.arange(-1, 2) * step if params.theta_range <= 0 else \
+        np.arange(-math.ceil(params.theta_range / step), math.ceil(params.theta_range / step) + 1) * step
+    cand = np.repeat(poses[:, None, :], len(turns), axis=1)
+    cand[..., 2] += turns
+    on_wall, _ = neighbourhood_flags(grid, cand, coarse)                 # (N, A, M)
+    best = np.argmax(on_wall.sum(axis=2) - 1e-3 * np.abs(turns) / step, axis=1)
+    start = cand[np.arange(n), best]
+    sel = spread_returns(beams, max(params.beams, params.icp_beams))
+    local = end_points(beams, sel)
+    centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
+    pose, info = icp(grid, start, local, surface_normals(beams, sel), centre, spread)
+    occupied, free = neighbourhood_flags(grid, pose, local)
+    score = occupied.mean(axis=1)
+    trusted = score >= params.min_score
+    if params.free_space:
+        trusted &= free.mean(axis=1) <= params.max_free
+    return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score)
+
+
+def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64]
+                        ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """(N, ..., M) each, for the end points local (M, 2) seen from the poses (N, ..., 3)
+    on map n: whether an occupied cell lies within one cell of the end point's, and
+    whether its cell is known free with none occupied near (outside the grid: neither)."""
+    h, w = grid.shape
+    x, y = transform_points(pose, local)
+    ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
+    iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
+    inside = (ix >= 1) & (ix < w - 1) & (iy >= 1) & (iy < h - 1)
+    maps = np.arange(len(pose)).reshape((-1,) + (1,) * (x.ndim - 1))
+    base = (maps * h + np.clip(iy, 1, h - 2)) * w + np.clip(ix, 1, w - 2)
+    cells = grid.cells_flat()
+    near = np.zeros(base.shape, dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            near |= cells.take(base + (dy * w + dx)) > 0
+    free = inside & ~near & (cells.take(base) < 0)
+    return inside & near, free
 
 
 def _flags_at(pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],

@@ -20,6 +20,7 @@ ICP_ITERATIONS = 3
 ICP_RADIUS = 2         # cells searched around each end point for occupied ones
 ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
 ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
+SMALL_GATHER = 20000   # kernel cells up to which ICP gathers them in one call
 NORMAL_GAP = 0.3       # [m] neighbouring returns farther apart give no surface normal
 
 
@@ -116,7 +117,9 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
     dk = d.astype(np.float32)[:, None, None]                           # (K, 1, 1) float32 arithmetic
     gain = np.float32(-0.5 / ICP_SPREAD ** 2)
     kernel = np.empty((len(shift), n, len(local)), dtype=grid.logodds.dtype)
-    cells = grid.logodds.reshape(-1)
+    cells = grid.cells_flat()
+    few = n * len(local) * len(shift) <= SMALL_GATHER
+    offsets = (np.array(shift, dtype=np.intp) - lo)[:, None, None]    # (K, 1, 1): base already holds lo
     # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
     c0, s0 = cos_sin(centre[:, 2])
     ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
@@ -135,8 +138,11 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
         iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
         iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
         base = (np.arange(n)[:, None] * h + iv) * w + iu + lo          # (N, M), >= 0 (lo < 0)
-        for j, sh in enumerate(shift):                                 # kernel first: sums add whole slabs
-            np.take(cells[sh - lo:], base, out=kernel[j], mode="clip")  # cells base + sh
+        if few:   # one gather: for a particle or two, the calls cost more than the cells
+            np.take(cells, base[None] + offsets, out=kernel, mode="clip")
+        else:
+            for j, sh in enumerate(shift):                             # kernel first: sums add whole slabs
+                np.take(cells[sh - lo:], base, out=kernel[j], mode="clip")  # cells base + sh
         ex = (u - iu - 0.5).astype(np.float32) - dk                    # (K, N, M) end point - centre [cells]
         ey = (v - iv - 0.5).astype(np.float32) - dk
         # The target is the Gaussian-weighted mean of the occupied centres nearby, not

@@ -5,10 +5,11 @@ import sys
 import rospy
 
 from assign5 import params
-from assign5.slam_node import SlamNode
+from assign5.slam_node import SlamNode, one_malloc_arena
 
 
 def main() -> int:
+    one_malloc_arena()  # before rospy starts its threads
     rospy.init_node("slam")
     node_cfg, slam_cfg = params.load()
     try:

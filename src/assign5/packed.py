@@ -30,7 +30,7 @@ class PackedGrid(OccupancyGrid):
         data = np.ascontiguousarray(self.data, dtype=np.int8)
         buff.write(_without_last_array(OccupancyGrid(header=self.header, info=self.info, data=[])))
         buff.write(struct.pack("<I", data.size))
-        buff.write(data.tobytes())
+        buff.write(memoryview(data).cast("B"))   # no copy before the buffer's own
 
 
 class PackedMapResponse(GetMapResponse):

@@ -9,6 +9,7 @@ saves the map and stops the node with exit code 1, so that `required="true"` fir
 """
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import resource
@@ -16,6 +17,7 @@ import threading
 import time
 import traceback
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import rospy
@@ -406,9 +408,37 @@ class SlamNode:
                 "rss_mb": round(rss / 2**20, 1)}
 
     def _stats_loop(self) -> None:
+        trim = _malloc_trim()
         while not rospy.is_shutdown():
+            trim()   # what large messages (maps, scans of many beams) were buffered in goes back
             try:
                 self.pub_stats.publish(String(json.dumps(self.stats())))
             except (rospy.ROSException, OSError, RuntimeError):
                 return  # shutting down
             time.sleep(STATS_PERIOD)
+
+
+def _malloc_trim() -> Callable[[], object]:
+    """glibc's malloc_trim(0), or nothing where there is none."""
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        return lambda: libc.malloc_trim(0)
+    except (OSError, AttributeError):
+        return lambda: None
+
+
+M_ARENA_MAX = -8  # glibc's mallopt parameter
+
+
+def one_malloc_arena() -> None:
+    """Makes every thread allocate from one glibc arena (call before any thread starts).
+
+    rospy serves each service call and connection in a thread of its own, and glibc
+    gives threads arenas of their own: what they buffered (a map sent to 20 callers at
+    once) then stays resident, +200 MB for a 2000 x 2000-cell map. The GIL serialises
+    the threads anyway, so sharing one arena costs nothing measurable.
+    """
+    try:
+        ctypes.CDLL("libc.so.6").mallopt(M_ARENA_MAX, 1)
+    except (OSError, AttributeError):
+        pass  # not glibc

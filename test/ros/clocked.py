@@ -206,6 +206,18 @@ class ClockedCase(unittest.TestCase):
         self.wait(lambda: self.stats is not None and predicate(self.stats), timeout, what)
         return self.stats
 
+    @staticmethod
+    def rss_mb(node="/slam"):
+        """The resident memory of a node's process [MB], asked of the node itself for its pid."""
+        import xmlrpc.client
+
+        import rosgraph
+
+        uri = rosgraph.Master(rospy.get_name()).lookupNode(node)
+        _, _, pid = xmlrpc.client.ServerProxy(uri).getPid(rospy.get_name())
+        with open(f"/proc/{pid}/status") as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("VmRSS")) / 1024
+
     def fresh_stats(self, timeout=10.0):
         """~stats made after this call (the second message from now)."""
         seen = self.stats_count

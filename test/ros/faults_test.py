@@ -25,6 +25,12 @@ from std_srvs.srv import Trigger
 from fastslam.io.map_files import load_map
 
 
+def forget(namespace):
+    """Removes a spawned node's parameters (none if it never started)."""
+    if rospy.has_param(namespace):
+        rospy.delete_param(namespace)
+
+
 class Faults(ClockedCase):
     NODE = "faults_test"
 
@@ -135,7 +141,7 @@ class Faults(ClockedCase):
         finally:
             if proc.poll() is None:
                 proc.kill()
-            rospy.delete_param("/fatal_slam")
+            forget("/fatal_slam")
         self.assertEqual(proc.returncode, 1, out)
         self.assertIn("scan update failed: slam.py stops (exit code 1); the map is saved first", out)
         self.assertIn("MemoryError: injected", out)
@@ -209,7 +215,7 @@ class Faults(ClockedCase):
     def stop(self, proc, name):
         proc.terminate()
         out = proc.communicate(timeout=30)[0]
-        rospy.delete_param(f"/{name}")
+        forget(f"/{name}")
         return out
 
     def test_stale_temporaries_are_removed_at_start_and_the_pair_stays_consistent(self):
@@ -268,7 +274,7 @@ class Faults(ClockedCase):
             proc.send_signal(signal.SIGKILL)
             proc.communicate(timeout=30)
         finally:
-            rospy.delete_param("/kill_slam")
+            forget("/kill_slam")
         occ, resolution, _ = load_map(stem + ".yaml")      # the YAML names an image that exists
         self.assertEqual(resolution, 0.05)
         self.assertGreater(int((occ >= 0).sum()), 100)
@@ -293,7 +299,7 @@ class Faults(ClockedCase):
             self.assertEqual(proc.returncode, 2, args)
             self.assertIn(message, proc.stdout + proc.stderr, args)
             self.assertNotIn("Traceback", proc.stdout + proc.stderr, args)
-            rospy.delete_param("/bad_slam")
+            forget("/bad_slam")
 
 
 if __name__ == "__main__":

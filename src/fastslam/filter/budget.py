@@ -17,7 +17,7 @@ from pathlib import Path
 from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 
-MAX_MAP_EXTENT = 1000.0   # [m] default largest side of the grid
+MAX_MAP_EXTENT = 2000.0   # [m] default largest side of the grid (the largest map_width)
 MAX_BEAMS = 4096          # default beams per scan the filter takes (more are subsampled)
 AUTO_SHARE = 0.8          # memory_limit_mb 0: this share of the machine's (or cgroup's, or ulimit's) memory
 RESERVE_MB = 128          # interpreter, numpy, rospy, message buffers: measured 60-90 MB for the node
@@ -91,19 +91,20 @@ class Limits:
         return None
 
 
-def startup_problem(cfg: SlamConfig, limits: Limits) -> str | None:
+def startup_problem(cfg: SlamConfig, limits: Limits, limit: str = "memory_limit_mb") -> str | None:
     """Why the configuration cannot start within the limits, or None: one line naming the
-    parameters to change."""
+    parameters to change (limit: what sets the memory limit, to name it)."""
     h, w = cfg.grid_shape
     side = max(cfg.map_width, cfg.map_height)
     if side > limits.max_map_extent:
         return f"max_map_extent={limits.max_map_extent:g} must be at least map_width/map_height ({side:g} m)"
     need = GridMaps.bytes_for(cfg.particles, (h, w))
     if limits.map_bytes is not None and need > limits.map_bytes:
-        return (f"memory_limit_mb: particles={cfg.particles} maps of {cfg.map_width:g} x {cfg.map_height:g} m at "
+        larger = "a larger memory_limit_mb" if limit == "memory_limit_mb" else "more memory"
+        return (f"{limit}: particles={cfg.particles} maps of {cfg.map_width:g} x {cfg.map_height:g} m at "
                 f"map_resolution={cfg.map_resolution:g} m ({w} x {h} cells) need {math.ceil(need / 2**20)} MB, "
                 f"more than the limit leaves for maps ({_mb(limits.map_bytes)} MB): use fewer particles, "
-                "a smaller map_width/map_height, a coarser map_resolution or a larger memory_limit_mb")
+                f"a smaller map_width/map_height, a coarser map_resolution or {larger}")
     return None
 
 

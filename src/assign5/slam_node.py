@@ -26,6 +26,7 @@ from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetMap
 from rosgraph_msgs.msg import Clock
+from rospy.numpy_msg import numpy_msg
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Float64, Header, String
 from std_srvs.srv import Trigger, TriggerResponse
@@ -115,7 +116,9 @@ class SlamNode:
         self.srv_map = rospy.Service("dynamic_map", GetMap, self.on_get_map)
         self.srv_save = rospy.Service("~save_map", Trigger, self.on_save_map)
         self.sub_odom = rospy.Subscriber(cfg.odom_topic, Odometry, self.on_odom, queue_size=50)
-        self.sub_scan = rospy.Subscriber(cfg.scan_topic, LaserScan, self.on_scan,
+        # numpy_msg: ranges arrive as an array, read at once (genpy would make a Python float
+        # per beam while holding the interpreter: a scan of a million beams held up tf)
+        self.sub_scan = rospy.Subscriber(cfg.scan_topic, numpy_msg(LaserScan), self.on_scan,
                                          queue_size=cfg.queue_size, buff_size=2**24)
         if not rospy.rostime.is_wallclock():
             self.sub_clock = rospy.Subscriber("/clock", Clock, self.on_clock, queue_size=10)

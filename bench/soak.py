@@ -4,7 +4,8 @@ A master, slam.py through slam.launch (sim time, the burger preset, node.yaml's 
 and limits) and this driver: the ROS-free simulator (fastslam.sim) drives the office
 loop again and again for 30 simulated minutes; the driver publishes /clock, odometry,
 tf and scans as the simulator node does, and injects at random (seeded) stale and
-reordered scans, odometry gaps and jumps, frozen odometry stamps, scans from unknown
+reordered scans, odometry gaps (the robot driving on) and jumps (at once, or after up
+to a minute of silence standing still), frozen odometry stamps, scans from unknown
 frames, bursts of up to a million beams, bad geometry, NaN odometry, future stamps, and
 dynamic_map (up to 20 at once) and save_map calls; once, in the last third, the
 simulator restarts (/clock goes back): the one real restart. It reports, every 5
@@ -113,6 +114,7 @@ class Driver:
                               route=self.route)
         self.odom_offset = np.zeros(2)
         self.odom_gap_until = -1.0
+        self.stand_until = -1.0
         self.held_scan: Any = None
         self.last_scan: Any = None
         self.static.sendTransform([self.convert.transform_msg(self.stamp(0.0), "base_footprint", "base_scan",
@@ -145,7 +147,10 @@ class Driver:
         return msg
 
     def tick(self) -> None:
-        tick = self.sim.step()
+        standing = self.now < self.stand_until
+        route, self.sim.route = self.sim.route, None if standing else self.sim.route
+        tick = self.sim.step()       # without its route, the robot stands (no cmd_vel)
+        self.sim.route = route
         stamp = self.stamp(tick.t)
         self.pub_clock.publish(self.Clock(stamp))
         if tick.odom_due and self.now >= self.odom_gap_until:
@@ -177,10 +182,12 @@ class Driver:
             self.held_scan = last               # sent again after the next one
         elif kind == "odometry gap":
             self.odom_gap_until = self.now + float(self.rng.uniform(1.0, 5.0))
-        elif kind == "odometry jump":            # a kidnap, at once or after a gap
+        elif kind == "odometry jump":
+            # a kidnap of the odometry frame (a driver reset), at once or after a silence of
+            # up to a minute while the robot stands still (no motion is lost: the map stays whole)
             self.odom_offset += self.rng.uniform(-1.0, 1.0, 2) * float(self.rng.choice([20.0, 1000.0]))
             if self.rng.uniform() < 0.5:
-                self.odom_gap_until = self.now + float(self.rng.uniform(5.0, 30.0))
+                self.odom_gap_until = self.stand_until = self.now + float(self.rng.uniform(5.0, 60.0))
         elif kind == "frozen odometry stamps":
             pose = self.sim.odom.pose.copy()
             pose[:2] += self.odom_offset

@@ -46,6 +46,7 @@ from .watchdog import Watchdog
 MOUNT_RETRY = 1.0    # [s] a laser frame not found in tf is looked up again at most this often
 FAILED_FRAMES = 256  # unknown frames remembered (a flood of made-up names must not grow memory)
 STATS_PERIOD = 1.0   # [s] of wall time between ~stats messages
+DROP_KINDS = 100     # kinds of drop counted apart; more are counted together
 
 
 @dataclass(frozen=True)
@@ -257,6 +258,8 @@ class SlamNode:
     def _drop(self, why: str) -> None:
         """Counts a dropped message by its kind; warns at the 1st, 10th, 100th... of each kind."""
         key = drop_key(why)
+        if key not in self.dropped and len(self.dropped) >= DROP_KINDS:
+            key = f"other kinds (more than {DROP_KINDS})"   # made-up frame names must not grow memory
         n = self.dropped.get(key, 0) + 1
         self.dropped[key] = n
         if _logged(n):

@@ -6,10 +6,11 @@ distance, whatever the time: a pose farther than max_odom_jump from every pose o
 last JUMP_WINDOW seconds (not integrated). Odometry out of step (faster than
 max_odom_speed since the previous message, as two sources interleaved on one topic
 give, or a log's made-up stamps) is kept: two such messages with no scan between them
-become one, their mean; a message older than the newest is put in its place. A scan
-stamped before the previous one by at most reset_backwards is out of order (dropped,
-counted); by more, or after the caller reports that the clock started again
-(`restart`), the filter resets, after `before_reset` had a look at what was mapped.
+become one, their mean; a message older than the newest is put in its place, or, older
+by more than reset_backwards, starts the odometry again (a restart). A scan stamped
+before the previous one by at most reset_backwards is out of order (dropped, counted);
+by more, or after the caller reports that the clock started again (`restart`), the
+filter resets, after `before_reset` had a look at what was mapped.
 Scans of more than max_beams beams are evenly subsampled; unusable scans are dropped
 with a reason. Each rule is counted (`counts`) and reported at its 1st, 10th, 100th...
 firing, as typed events (Kidnap, Notice; Reset at every reset) for the caller to log
@@ -127,6 +128,15 @@ class Frontend:
         if latest is None:
             self._accept(t, pose)
             return
+        if t < latest[0] - self.reset_backwards:
+            # older than the newest by more than reset_backwards: the odometry started again
+            # (a bag, driver or simulator restarted); the buffer starts again with it
+            self._fire("odometry restarted", lambda n: Notice(
+                "odometry restarted", f"odometry stamped {latest[0] - t:.2f} s before the newest message "
+                f"(> reset_backwards {self.reset_backwards:g} s): taken as a restart, the older odometry dropped", n))
+            self.odom.clear()
+            self._accept(t, pose)
+            return
         if t < latest[0]:
             # older than the newest: in its place if the buffer still covers it
             if self.odom.insert(t, pose):
@@ -190,7 +200,8 @@ class Frontend:
             if self.before_reset is not None and self.slam.updates > 0:
                 self.before_reset(event)
             self.events.append(event)
-            self.reset(keep_odometry=self._restart)
+            latest = self.odom.latest   # the new run's odometry (near the scan) is kept, the old one's not
+            self.reset(keep_odometry=latest is not None and latest[0] - t <= self.reset_backwards)
         self._restart = False
         odom = self.odom.at(t, self.odom_timeout)
         if odom is None:

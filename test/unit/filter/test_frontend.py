@@ -119,13 +119,14 @@ def test_time_going_backwards_resets():
         f.add_odom(t, np.array([t, 0.0, 0.0]))
         f.add_scan(scan(t))
     assert f.slam.updates == 2
-    f.add_odom(0.5, np.array([0.0, 0.0, 0.0]))      # older than the buffer: ignored
-    with pytest.raises(Dropped):
-        f.add_scan(scan(0.5))                       # reset, then no odometry yet
-    assert f.events == [Reset(previous=2.0, stamp=0.5)] and f.slam.updates == 0
-    assert "time went backwards (2.00 -> 0.50 s)" in str(f.events[0])
-    f.add_odom(0.5, np.zeros(3))
-    assert f.add_scan(scan(0.5)).processed
+    f.add_odom(0.5, np.array([0.0, 0.0, 0.0]))      # 1.5 s older than the newest: the odometry restarted
+    assert f.add_scan(scan(0.5)).processed          # reset, then the new run's first update
+    reset, notice = f.events[1], f.events[0]
+    assert reset == Reset(previous=2.0, stamp=0.5) and f.slam.updates == 1
+    assert "time went backwards (2.00 -> 0.50 s)" in str(reset)
+    assert str(notice) == ("odometry stamped 1.50 s before the newest message (> reset_backwards 1 s): taken "
+                           "as a restart, the older odometry dropped")
+    assert f.counts == {"odometry restarted": 1}
 
 
 def test_drop_key_counts_reasons_with_different_values_as_one():
@@ -180,20 +181,32 @@ def test_a_scan_more_than_reset_backwards_older_resets_after_the_map_was_looked_
     seen = []
     f = _mapped(front())
     f.before_reset = lambda event: seen.append((event, f.slam.updates, np.count_nonzero(f.slam.grid.logodds)))
-    f.add_odom(0.9, np.zeros(3))                                  # older than the buffer: ignored
-    with pytest.raises(Dropped, match="no odometry"):
-        f.add_scan(scan(0.9))                                     # 1.1 s back: a restart
+    f.add_odom(0.9, np.zeros(3))                                  # 1.1 s back: the odometry restarted
+    assert f.add_scan(scan(0.9)).processed                        # 1.1 s back: a restart
     (event, updates, known), = seen
     assert event == Reset(previous=2.0, stamp=0.9) and updates == 2 and known > 0
-    assert f.events == [event] and f.resets == 1 and f.slam.updates == 0
+    assert f.events[-1] == event and f.resets == 1 and f.slam.updates == 1
 
 
 def test_the_tolerance_is_a_parameter():
     f = _mapped(front())
     f.reset_backwards = 0.0
     with pytest.raises(Dropped, match="no odometry"):
-        f.add_scan(scan(1.999))
+        f.add_scan(scan(1.999))                   # the odometry of the old run is not kept
     assert isinstance(f.events[0], Reset) and f.resets == 1
+
+
+def test_odometry_of_a_restarted_run_replaces_the_old_and_a_late_old_message_heals():
+    # the clock went back 80 s; an old-run message arrives after the first new one
+    f = _mapped(front(), times=(180.0, 181.0))
+    f.restart()
+    f.add_odom(100.0, np.array([0.0, 0.0, 0.0]))
+    f.add_odom(181.1, np.array([181.1, 0.0, 0.0]))   # late, from the old run: 81 s "newer", 181 m away
+    f.add_odom(100.1, np.array([0.1, 0.0, 0.0]))     # 81 s older than that: the odometry restarted again
+    f.add_odom(100.2, np.array([0.2, 0.0, 0.0]))
+    assert f.add_scan(scan(100.2)).processed and f.slam.updates == 1
+    np.testing.assert_allclose(f.last_odom, [0.2, 0.0, 0.0])
+    assert f.counts["odometry restarted"] == 1 and f.counts["odometry kidnap"] == 1
 
 
 def test_the_clock_starting_again_resets_however_close_the_stamp():

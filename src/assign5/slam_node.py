@@ -89,6 +89,7 @@ class SlamNode:
         self.scans_seen = 0
         self.entropy = 0.0
         self.dropped: dict[str, int] = {}
+        self.count_lock = threading.Lock()  # dropped
         self.update_ms: list[float] = []
         self.fatal: str | None = None
         self.reset_saves: list[MapCopy] = []
@@ -258,10 +259,11 @@ class SlamNode:
     def _drop(self, why: str) -> None:
         """Counts a dropped message by its kind; warns at the 1st, 10th, 100th... of each kind."""
         key = drop_key(why)
-        if key not in self.dropped and len(self.dropped) >= DROP_KINDS:
-            key = f"other kinds (more than {DROP_KINDS})"   # made-up frame names must not grow memory
-        n = self.dropped.get(key, 0) + 1
-        self.dropped[key] = n
+        with self.count_lock:   # scans and odometry are dropped in threads of their own
+            if key not in self.dropped and len(self.dropped) >= DROP_KINDS:
+                key = f"other kinds (more than {DROP_KINDS})"   # made-up frame names must not grow memory
+            n = self.dropped.get(key, 0) + 1
+            self.dropped[key] = n
         if _logged(n):
             rospy.logwarn(f"dropping message: {why} ({n} so far" +
                           ("; said again at the 10th, 100th, ...)" if n == 1 else ")"))
@@ -406,8 +408,12 @@ class SlamNode:
         grid, lim = self.slam.grid, self.slam.limits
         with open("/proc/self/statm") as f:
             rss = int(f.read().split()[1]) * resource.getpagesize()
+        with self.count_lock:
+            dropped = dict(self.dropped)
+        with self.lock:
+            rules = dict(self.front.counts)
         return {"scans": self.scans_seen, "updates": self.updates, "resets": self.front.resets,
-                "dropped": dict(self.dropped), "rules": dict(self.front.counts),
+                "dropped": dropped, "rules": rules,
                 "map_growth_refused": self.slam.refusals, "known_cells": self.known_cells,
                 "map_cells": list(grid.shape), "maps_mb": round(grid.nbytes / 2**20, 1),
                 "maps_limit_mb": None if lim.map_bytes is None else round(lim.map_bytes / 2**20, 1),

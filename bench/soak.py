@@ -244,6 +244,21 @@ def call_services(watch: Watch, kind: str, count: int) -> None:
         threading.Thread(target=one, daemon=True).start()
 
 
+def late_moments(stamps: list[float], log: list[tuple[float, str]], count: int = 5) -> list[dict[str, Any]]:
+    """The count largest gaps between map->odom stamps, each with the faults injected in
+    the 2 s before it (to tell a fault's cost from the machine's scheduling)."""
+    st = np.asarray(stamps)
+    gaps = np.diff(st)
+    out = []
+    for i in np.argsort(gaps)[::-1][:count]:
+        if gaps[i] <= 0:
+            continue
+        t = float(st[i])
+        near = sorted({kind for when, kind in log if t - 2.0 <= when <= t + gaps[i]})
+        out.append({"at_s": round(t - START, 2), "gap_s": round(float(gaps[i]), 3), "faults": near})
+    return out
+
+
 def tf_lateness(stamps: list[float]) -> float:
     """Largest gap between successive map->odom stamps beyond one period [s]; gaps
     across the clock going back are left out."""
@@ -307,7 +322,7 @@ def run(minutes: float, speed: float, seed: int, config: str) -> dict[str, Any]:
         core.wait(timeout=30)
         logs.close()
     saved = sorted(p.name for p in home.glob("soak_map*.yaml"))
-    return summarise(rows, samples, watch, driver.injected, saved, home)
+    return summarise(rows, samples, watch, driver.injected, driver.log, saved, home)
 
 
 def drive(driver: Driver, watch: Watch, pid: int, minutes: float, speed: float,
@@ -373,7 +388,7 @@ def report_row(samples: list[dict[str, Any]], watch: Watch, elapsed: float) -> d
 
 
 def summarise(rows: list[dict[str, Any]], samples: list[dict[str, Any]], watch: Watch, injected: dict[str, int],
-              saved: list[str], home: Path) -> dict[str, Any]:
+              log: list[tuple[float, str]], saved: list[str], home: Path) -> dict[str, Any]:
     restart = next((s["restart"] for s in samples if "restart" in s), None)
     points = [s for s in samples if "t" in s]
     # known cells may drop only where the node reset (its ~stats count the resets); the
@@ -400,7 +415,8 @@ def summarise(rows: list[dict[str, Any]], samples: list[dict[str, Any]], watch: 
     second, second_peak = baseline(restart + WARM_UP, end + 1) if restart is not None else (float("nan"),) * 2
     with watch.lock:
         late, calls, errors, stats = tf_lateness(watch.tf_stamps), watch.calls, watch.service_errors, watch.stats
-    out = {"injected": injected, "known_cell_drops": drops,
+        moments = late_moments(watch.tf_stamps, log)
+    out = {"injected": injected, "known_cell_drops": drops, "tf_largest_gaps": moments,
            "rss_flat_after_warm_up_mb": [round(first, 1), round(second, 1)],
            "rss_transient_mb": [round(first_peak, 1), round(second_peak, 1)],
            "tf_late_max_s": round(late, 3), "service_calls": calls, "service_errors": errors,
@@ -416,6 +432,8 @@ def summarise(rows: list[dict[str, Any]], samples: list[dict[str, Any]], watch: 
                                                  f"({100 * worst_share:.3f} % of the map) at {worst[0]} min"))
     print(f"memory after warm-up ({WARM_UP / 60:.0f} min): the per-minute low stayed within {first:.1f} MB before the "
           f"restart and {second:.1f} MB after (transients of a fault up to {first_peak:.1f} / {second_peak:.1f} MB)")
+    print("largest map->odom gaps (sim s after the start of its run, the faults of the 2 s before): " +
+          "; ".join(f"{m['gap_s']} s at {m['at_s']} ({', '.join(m['faults']) or 'none'})" for m in moments))
     print(f"map->odom at most {late:.3f} s late ({late / TF_PERIOD:.1f} periods); {calls} service calls answered, "
           f"{errors} failed; maps saved: {', '.join(saved)}; everything in {home}/soak.json")
     return out

@@ -108,6 +108,10 @@ class Faults(ClockedCase):
     def test_growth_past_max_map_extent_is_refused_once_and_mapping_goes_on(self):
         self.ready()
         errors = len(self.logged("map growth refused", Log.ERROR))
+        # and a second node whose memory_limit_mb leaves its two maps 0.55 MB (128 MB and one
+        # scan's work arrays are the node's own): refused by memory at about 36 m
+        memory = self.spawn("mem_slam", "_memory_limit_mb:=129.3", "_save_on_exit:=false")
+        self.wait_until_updates("mem_slam")
         start = self.x
         for _ in range(100):                      # 50 m along x, 0.5 m a step at 2.5 m/s
             self.clock.jump(0.2)
@@ -121,6 +125,10 @@ class Faults(ClockedCase):
         self.assertEqual(len(refused), 1, refused)
         self.assertIn("beyond max_map_extent 40 m; mapping goes on inside the map", refused[0])
         self.stats_when(lambda s: s["map_growth_refused"] > 0, "refusals counted")
+        out = self.stop(memory, "mem_slam")
+        refused = [line for line in out.splitlines() if "map growth refused" in line]
+        self.assertEqual(len(refused), 1, out[-3000:])
+        self.assertIn("more than the memory limit leaves them (0.5 MB; memory_limit_mb); mapping goes on", refused[0])
         for _ in range(100):                      # and back
             self.clock.jump(0.2)
             self.step(-0.5)
@@ -228,6 +236,15 @@ class Faults(ClockedCase):
         forget(f"/{name}")
         return out
 
+    def wait_until_updates(self, name, timeout=30):
+        got = threading.Event()
+        sub = rospy.Subscriber(f"{name}/neff", Float64, lambda _: got.set())
+        deadline = time.monotonic() + timeout
+        while not got.is_set() and time.monotonic() < deadline:
+            self.step(timeout=1.0)
+        sub.unregister()
+        self.assertTrue(got.is_set(), f"{name} never updated")
+
     def test_stale_temporaries_are_removed_at_start_and_the_pair_stays_consistent(self):
         folder = tempfile.mkdtemp()
         stem = os.path.join(folder, "m")
@@ -239,12 +256,7 @@ class Faults(ClockedCase):
         try:
             rospy.wait_for_service("save_slam/save_map", 30)
             self.assertEqual(sorted(os.listdir(folder)), [])
-            got = threading.Event()
-            sub = rospy.Subscriber("save_slam/neff", Float64, lambda _: got.set())
-            deadline = time.monotonic() + 30
-            while not got.is_set() and time.monotonic() < deadline:
-                self.step(timeout=1.0)
-            sub.unregister()
+            self.wait_until_updates("save_slam")
             save = rospy.ServiceProxy("save_slam/save_map", Trigger)
             for _ in range(3):
                 res = save()

@@ -144,7 +144,7 @@ class SlamNode:
                 self._log_events()
                 self.odom_arrived.notify_all()
         except Dropped as err:  # convert's BadMessage is Dropped too
-            self._drop(f"odometry: {err}")
+            self._drop(str(err))  # "odometry with NaN or inf", "... an all-zero quaternion": kinds apart
 
     def on_clock(self, msg: Clock) -> None:
         t = msg.clock.to_sec()

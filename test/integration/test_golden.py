@@ -41,7 +41,7 @@ def fingerprint(slam) -> dict[str, str]:
         return h.hexdigest()[:16]
 
     grid = slam.grid
-    maps = np.stack([grid.logodds[i] for i in range(len(slam.poses))])
+    maps = np.stack([grid.particle_map(i) for i in range(len(slam.poses))])
     return {"trajectory": digest(slam.trajectory()), "poses": digest(slam.poses),
             "maps": digest(maps, np.asarray(grid.origin, dtype=np.float64))}
 

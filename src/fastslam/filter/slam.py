@@ -238,8 +238,8 @@ class FastSlam:
         ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
         iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
         inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-        flat = (np.arange(len(self.poses))[:, None] * h + np.clip(iy, 0, h - 1)) * w + np.clip(ix, 0, w - 1)
-        return inside & (grid.logodds.reshape(-1).take(flat) < 0)
+        cells = grid.values(np.arange(len(self.poses))[:, None], np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1))
+        return inside & (cells < 0)
 
     def _resample(self, w: NDArray[np.float64], n_eff: float) -> tuple[bool, NDArray[np.intp]]:
         """Low-variance resampling when due; returns whether, and each slot's parent slot."""

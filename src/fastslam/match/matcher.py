@@ -34,7 +34,7 @@ from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
 from fastslam.match.refine import hill_climb, icp, surface_normals
-from fastslam.match.search import POOL, grid_search, pick, pool_occupied, pool_signed, search_area, window
+from fastslam.match.search import POOL, POOL_MAPS, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -107,8 +107,7 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     x0, y0, x1, y1 = search_area(grid, poses, local, ka * dth, k0 * coarse, window(grid, poses, reach))
     if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
         return nothing
-    pool = pool_signed if params.free_space else pool_occupied
-    half, quarter = pool(grid.logodds[:, y0:y1, x0:x1])           # 2x2, 4x4 cells: occupied if any is
+    half, quarter = _pooled(grid, (x0, y0, x1, y1), params.free_space)   # 2x2, 4x4 cells: occupied if any is
     known = np.count_nonzero(quarter > 0, axis=(1, 2))             # (N,) occupied 4x4 blocks in reach
     w_origin = grid.origin + np.array([x0, y0]) * res
     if prior is None:
@@ -126,7 +125,7 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     pose = pick(grid_search(half, w_origin, 2 * res, pose, turns, local, 2, flags=True),
                 pose, turns, 2, 2 * res, centre, spread, m)
     turns = np.array([-0.25, 0.0, 0.25]) * dth
-    scores = grid_search(grid.logodds, grid.origin, res, pose, turns, local, 1)
+    scores = grid_search(grid, grid.origin, res, pose, turns, local, 1)
     pose = pick(scores, pose, turns, 1, res, centre, spread, m)
     # 3. finer than a cell
     cov = None
@@ -142,6 +141,20 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     if params.free_space:
         trusted &= (flags < 0).mean(axis=1) <= params.max_free
     return Match(poses=pose, trusted=trusted, covariance=cov, score=score)
+
+
+def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+    """The maps' cells x0 <= ix < x1, y0 <= iy < y1 pooled to 2x2 and 4x4 cells
+    (pool_signed or pool_occupied), a few maps at a time (their crops stay small)."""
+    x0, y0, x1, y1 = box
+    n = grid.particles
+    pool = pool_signed if signed else pool_occupied
+    half = np.empty((n, (y1 - y0) // 2, (x1 - x0) // 2), dtype=np.int8)
+    quarter = np.empty((n, (y1 - y0) // 4, (x1 - x0) // 4), dtype=np.int8)
+    for a in range(0, n, POOL_MAPS):
+        b = min(n, a + POOL_MAPS)
+        half[a:b], quarter[a:b] = pool(grid.crop(y0, y1, x0, x1, a, b))
+    return half, quarter
 
 
 def _flags_at(pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],

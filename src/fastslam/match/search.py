@@ -24,6 +24,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 
 POOL = 4               # coarse level: cells per side of a pooled cell
 SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further
+POOL_MAPS = 8          # maps pooled at a time: the work arrays stay in cache
 
 
 def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
@@ -35,16 +36,17 @@ def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
     return (logodds > 0).view(np.int8)
 
 
-def grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
+def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64], cell: float,
                  poses: NDArray[np.float64], turns: NDArray[np.float64], local: NDArray[np.float64],
                  k: int, flags: bool = False) -> NDArray[np.int64]:
     """Scores (N, A, (2k+1)^2) of poses turned by turns (A,) and shifted by -k..k cells.
 
     level: (N, Hv, Wv) log-odds (only max(l, 0) counts) with cells of size `cell` and
-    lower-left corner `origin`, or (flags) already the 0/1 cell scores. Candidate
-    t = (dy + k) * (2k + 1) + (dx + k).
+    lower-left corner `origin`, or (flags) already the 0/1 cell scores; or the maps
+    themselves (a GridMaps: its log-odds). Candidate t = (dy + k) * (2k + 1) + (dx + k).
     """
-    n, hv, wv = level.shape
+    n = len(poses)
+    hv, wv = level.shape if isinstance(level, GridMaps) else level.shape[1:]
     cand = np.repeat(poses[:, None, :], len(turns), axis=1)
     cand[..., 2] += turns
     x, y = transform_points(cand, local)                                            # (N, A, M)
@@ -52,19 +54,23 @@ def grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: floa
     # there are at most k cells off, in a part of the window nothing was seen in.
     cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
     cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
-    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx                # (N, A, M)
     d = np.arange(-k, k + 1)
-    shifts = (d[:, None] * wv + d[None, :]).reshape(-1).tolist()            # (T,), ascending
-    # End points first: one gather per shift, from the flat map offset by the shift
-    # (no (N, A, T, M) index array), and the sum over end points adds whole (N, A)
-    # slabs. Every shifted cell is inside (clamped above), so mode="clip" never clips.
-    lo = shifts[0]
-    at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)       # (M, N, A)
-    at += lo                                                                # >= 0: cells are clamped k from the edge
-    f = level.reshape(-1)
-    vals = scratch("grid_search", (len(shifts),) + at.shape, level.dtype)  # (T, M, N, A), reused
-    for i, s in enumerate(shifts):
-        np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
+    # End points first: one gather per shift (no (N, A, T, M) index array), and the sum
+    # over end points adds whole (N, A) slabs. Every shifted cell is inside (clamped above).
+    shape = (len(d) ** 2, len(local), n, len(turns))
+    vals = scratch("grid_search", shape, np.int8)                            # (T, M, N, A), reused
+    if isinstance(level, GridMaps):
+        level.values_around(np.arange(n)[None, :, None], cy.transpose(2, 0, 1), cx.transpose(2, 0, 1),
+                            np.repeat(d, len(d)), np.tile(d, len(d)), out=vals)
+    else:
+        flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx            # (N, A, M)
+        shifts = (d[:, None] * wv + d[None, :]).reshape(-1).tolist()        # (T,), ascending
+        lo = shifts[0]
+        at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)   # (M, N, A)
+        at += lo                                                            # >= 0: cells are clamped k from the edge
+        f = level.reshape(-1)
+        for i, s in enumerate(shifts):
+            np.take(f[s - lo:], at, out=vals[i], mode="clip")               # cells flat + s (s - lo >= 0)
     # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
     acc = np.int8 if len(local) < 128 else np.int16
     sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)  # (T, N, A)
@@ -123,7 +129,7 @@ def pool_occupied(level: NDArray[np.int8], above: int = 0) -> tuple[NDArray[np.i
     A few maps at a time, in reused work arrays: the temporaries stay in cache.
     """
     n, h, w = level.shape
-    maps = 8  # at a time
+    maps = POOL_MAPS
     half = np.empty((n, h // 2, w // 2), dtype=np.bool_)
     quarter = np.empty((n, h // 4, w // 4), dtype=np.bool_)
     for a in range(0, n, maps):
@@ -150,7 +156,7 @@ def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.i
     for "any occupied" and "any not free" from one maximum of row pairs.
     """
     n, h, w = level.shape
-    maps = 8  # at a time
+    maps = POOL_MAPS
     half = np.empty((n, h // 2, w // 2), dtype=np.int8)
     quarter = np.empty((n, h // 4, w // 4), dtype=np.int8)
     for a in range(0, n, maps):

@@ -124,25 +124,17 @@ def pool_occupied(level: NDArray[np.int8], above: int = 0) -> tuple[NDArray[np.i
     """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
     2x2 and 4x4 block is occupied (log-odds above `above`; H, W multiples of 4).
 
-    Column pairs of a contiguous flag array are read as one uint16 each, row pairs
-    as the two halves of a doubled row: cheaper than maxima of strided int8 views.
-    A few maps at a time, in reused work arrays: the temporaries stay in cache.
+    Any cell above `above` is the block's maximum above it (see _block_max).
     """
     n, h, w = level.shape
-    maps = POOL_MAPS
-    half = np.empty((n, h // 2, w // 2), dtype=np.bool_)
-    quarter = np.empty((n, h // 4, w // 4), dtype=np.bool_)
-    for a in range(0, n, maps):
-        b = min(n, a + maps)
-        rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
-                          out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
-        occupied = np.greater(rows, above, out=rows.view(np.bool_))
-        np.not_equal(occupied.view(np.uint16), 0, out=half[a:b])
-        pairs = half[a:b].reshape(b - a, h // 4, w)                       # rows 2i, 2i+1 side by side
-        quads = np.bitwise_or(pairs[:, :, :w // 2], pairs[:, :, w // 2:],
-                              out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
-        np.not_equal(quads.view(np.uint16), 0, out=quarter[a:b])
-    return half.view(np.int8), quarter.view(np.int8)
+    half = np.empty((n, h // 2, w // 2), dtype=np.int8)
+    quarter = np.empty((n, h // 4, w // 4), dtype=np.int8)
+    for a in range(0, n, POOL_MAPS):
+        b = min(n, a + POOL_MAPS)
+        m2 = _block_max(level[a:b], "pool2")
+        np.greater(m2, above, out=half[a:b].view(np.bool_))
+        np.greater(_block_max(m2, "pool4"), above, out=quarter[a:b].view(np.bool_))
+    return half, quarter
 
 
 def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
@@ -152,34 +144,27 @@ def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.i
     An end point on a free block contradicts the map (the beam would have ended
     there before): summed, these flags score a candidate by the end points it puts on
     walls less those it puts in free space, which a wrong alignment (a turned copy of
-    a room, the wrong side of a wall) cannot hide. The same passes as pool_occupied,
-    for "any occupied" and "any not free" from one maximum of row pairs.
+    a room, the wrong side of a wall) cannot hide. They are the sign of the block's
+    maximum: above 0 if any cell is occupied, below 0 if every cell is free.
     """
     n, h, w = level.shape
-    maps = POOL_MAPS
     half = np.empty((n, h // 2, w // 2), dtype=np.int8)
     quarter = np.empty((n, h // 4, w // 4), dtype=np.int8)
-    for a in range(0, n, maps):
-        b = min(n, a + maps)
-        rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
-                          out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
-        out2, out4 = [], []
-        for k, above in enumerate((0, -1)):                     # occupied; not known free
-            flags = np.greater(rows, above, out=scratch(f"pool_flags{k}", (b - a, h // 2, w), np.bool_))
-            pair = np.not_equal(flags.view(np.uint16), 0, out=scratch(f"pool_half{k}", (b - a, h // 2, w // 2),
-                                                                     np.bool_))
-            rows2 = pair.reshape(b - a, h // 4, w)               # rows 2i, 2i+1 side by side
-            quads = np.bitwise_or(rows2[:, :, :w // 2], rows2[:, :, w // 2:],
-                                  out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
-            out2.append(pair.view(np.int8))
-            out4.append(np.not_equal(quads.view(np.uint16), 0,
-                                     out=scratch(f"pool_quarter{k}", (b - a, h // 4, w // 4), np.bool_)).view(np.int8))
-        # occupied + not free - 1: +1 occupied, 0 unknown, -1 all free
-        np.add(out2[0], out2[1], out=half[a:b])
-        half[a:b] -= 1
-        np.add(out4[0], out4[1], out=quarter[a:b])
-        quarter[a:b] -= 1
+    for a in range(0, n, POOL_MAPS):
+        b = min(n, a + POOL_MAPS)
+        m2 = _block_max(level[a:b], "pool2")
+        np.sign(m2, out=half[a:b])
+        np.sign(_block_max(m2, "pool4"), out=quarter[a:b])
     return half, quarter
+
+
+def _block_max(level: NDArray[np.int8], key: str) -> NDArray[np.int8]:
+    """(k, H, W) -> (k, H/2, W/2) maxima of 2x2 blocks, in a reused work array: row pairs
+    first (whole rows), then the two bytes of each column pair."""
+    k, h, w = level.shape
+    rows = np.maximum(level[:, 0::2, :], level[:, 1::2, :], out=scratch(key + "_rows", (k, h // 2, w), np.int8))
+    pairs = rows.reshape(k, h // 2, w // 2, 2)
+    return np.maximum(pairs[..., 0], pairs[..., 1], out=scratch(key, (k, h // 2, w // 2), np.int8))
 
 
 def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:

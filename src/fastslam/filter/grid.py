@@ -66,10 +66,16 @@ class CellSpace:
     def __init__(self, grid: GridMaps, values: NDArray[np.int8], *, rows: int, stride: int, y0: int, x0: int,
                  lead: int, size: int) -> None:
         self.grid = grid
-        self.values = values
+        self._values = values
         self.rows, self.stride, self.y0, self.x0, self.lead = rows, stride, y0, x0, lead
         # int32 indices are cheaper to compute and to keep; int64 past 2**31 cells
         self.index_type: type = np.int32 if size < np.iinfo(np.int32).max else np.int64
+        self.write_type: type = np.intp   # of the cells to write, for writable: numpy indexes fastest with intp
+
+    @property
+    def values(self) -> NDArray[np.int8]:
+        """The flat array the positions index."""
+        return self._values
 
     def base(self, i: NDArray[np.integer[Any]], iy: NDArray[np.integer[Any]],
              ix: NDArray[np.integer[Any]]) -> NDArray[np.integer[Any]]:

@@ -357,8 +357,8 @@ def _group_cells(lines: _Lines, parts: list[NDArray[np.intp]], r: NDArray[np.flo
             f, h = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
             free.append(f)
             hit_cells.append(h)
-    # _apply indexes faster with intp; the narrow type made the passes above cheaper.
-    out = scratch("raycast_free", (sum(len(f) for f in free),), np.intp)
+    # _apply indexes faster with intp (space.write_type); the narrow type made the passes above cheaper.
+    out = scratch("raycast_free", (sum(len(f) for f in free),), lines.space.write_type)
     return np.concatenate(free, out=out), hit_cells
 
 

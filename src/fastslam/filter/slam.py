@@ -52,6 +52,8 @@ class StepInfo:
 class FastSlam:
     """The particle set: poses (N, 3), log-weights (N,), maps (N, H, W), trajectories."""
 
+    maps_type: type[GridMaps] = GridMaps   # the maps' storage (fastslam.filter.tiles.TileMaps: shared tiles)
+
     def __init__(self, cfg: SlamConfig, rng: np.random.Generator | None = None) -> None:
         self.cfg = cfg
         self.rng = rng if rng is not None else np.random.default_rng(cfg.rng_seed)
@@ -62,7 +64,7 @@ class FastSlam:
         cfg = self.cfg
         n = cfg.particles
         h, w = cfg.grid_shape
-        self.grid = GridMaps(n, (h, w), cfg.map_resolution,
+        self.grid = self.maps_type(n, (h, w), cfg.map_resolution,
                              (-w * cfg.map_resolution / 2, -h * cfg.map_resolution / 2),
                              l_limit=max(-cfg.l_min, cfg.l_max))
         self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
@@ -23,6 +23,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
+SPACE_CELLS = 1 << 20     # cells of a space shared by consecutive chunks (see _spaces)
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
 TRIM_CHUNK_ELEMENTS = 1 << 19
 
@@ -102,9 +103,10 @@ class _Lines:
         hi = np.minimum(self.start.max(axis=0) + k + 1, (w, h))
         return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
 
-    def in_space(self, space: CellSpace) -> _Lines:
-        """The same lines with the indices of their start cells in space."""
-        base = space.base(np.arange(len(self.start)), self.start[:, 1], self.start[:, 0])
+    def in_space(self, space: CellSpace, first: int = 0) -> _Lines:
+        """The same lines with the indices of their start cells in space (the lines'
+        particles being the space's first .. first + n - 1)."""
+        base = space.base(first + np.arange(len(self.start)), self.start[:, 1], self.start[:, 0])
         return _Lines(start=self.start, steps=self.steps, slope=self.slope, shape=self.shape, base=base,
                       space=space)
 
@@ -202,14 +204,22 @@ def expected_ranges(grid: GridMaps, rays: Rays, min_range: float = 0.0) -> NDArr
     at: the sensor cannot see them. A beam that meets nothing returns max_range.
     The cells are read through rays.space (grid: the same maps).
     """
-    space = rays.space
-    cells = space.values
     k0 = int(rays.first_step_at(min_range).min()) if min_range > 0 else 0
+    return _first_occupied(rays, _read(rays, k0), k0)
+
+
+def _read(rays: Rays, k0: int = 0) -> NDArray[np.int8]:
+    """(n, M, K - k0) the cells of steps k0.. of every beam (outside the grid: any value)."""
+    space = rays.space
     flat = rays.flat[..., k0:]
-    if rays.inside:
-        occupied = cells.take(space.resolve(flat)) > 0
-    else:
-        occupied = (cells.take(space.resolve(np.maximum(flat, 0))) > 0) & (flat >= 0)
+    return space.values.take(space.resolve(flat if rays.inside else np.maximum(flat, 0)))
+
+
+def _first_occupied(rays: Rays, cells: NDArray[np.int8], k0: int) -> NDArray[np.float64]:
+    """expected_ranges from the cells of steps k0.. (_read)."""
+    occupied = cells > 0
+    if not rays.inside:
+        occupied &= rays.flat[..., k0:] >= 0
     first = occupied.argmax(axis=2)
     hit = np.take_along_axis(occupied, first[..., None], axis=2)[..., 0]
     return np.where(hit, rays.range_of_step(first + k0), rays.max_range)
@@ -226,22 +236,32 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
         first_step: (n, M) steps before it (the sensor's minimum range) are left alone.
         steps: increments and clamps in the grid's int8 units.
     """
-    free, hit = _cells_to_update(rays, free_until, hit_step, first_step)
-    _apply(rays.space, free, hit, steps)
+    free, hit, known = _cells_to_update(rays, free_until, hit_step, first_step)
+    _apply(rays.space, free, hit, steps, known)
 
 
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
-                     first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer[Any]], NDArray[np.integer[Any]]]:
-    """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
-    free = _free_of(rays.flat, free_until, first_step, valid=None if rays.inside else rays.flat >= 0)
+                     first_step: NDArray[np.int64], cells: NDArray[np.int8] | None = None
+                     ) -> tuple[NDArray[np.integer[Any]], NDArray[np.integer[Any]],
+                                tuple[NDArray[np.int8], NDArray[np.int8]] | None]:
+    """Flat indices of the cells to make more free and of the hit cells (see
+    update_logodds), and their values if the values of all steps are given (_read):
+    no second gather of them."""
+    mask = _free_mask(rays.flat.shape, free_until, first_step, valid=None if rays.inside else rays.flat >= 0)
+    free = rays.flat[mask]  # boolean indexing: much faster than np.compress with out
     has_hit = hit_step >= 0
-    hit = np.take_along_axis(rays.flat, np.where(has_hit, hit_step, 0)[..., None], axis=2)[..., 0]
-    return free, hit[has_hit & (hit >= 0)]
+    at = np.where(has_hit, hit_step, 0)[..., None]
+    hit = np.take_along_axis(rays.flat, at, axis=2)[..., 0]
+    sel = has_hit & (hit >= 0)
+    if cells is None:
+        return free, hit[sel], None
+    return free, hit[sel], (cells[mask], np.take_along_axis(cells, at, axis=2)[..., 0][sel])
 
 
 def _apply(space: CellSpace, free: NDArray[np.integer[Any]], hit: NDArray[np.integer[Any]],
-           steps: LogOddsSteps) -> None:
-    """One scan's update of the cells free (repeats allowed) and hit of space."""
+           steps: LogOddsSteps, known: tuple[NDArray[np.int8], NDArray[np.int8]] | None = None) -> None:
+    """One scan's update of the cells free (repeats allowed) and hit of space; known:
+    their values now, if already read (copies: they are changed)."""
     l_free, l_occ, l_min, l_max = steps
     free, hit = space.writable(free), space.writable(hit)
     cells = space.values
@@ -251,9 +271,12 @@ def _apply(space: CellSpace, free: NDArray[np.integer[Any]], hit: NDArray[np.int
         # Indexing with intp indices is much faster than with int32 ones or put.
         free = free.astype(np.intp, copy=False)
         hit = hit.astype(np.intp, copy=False)
-        before = cells[hit]  # hit cells take l_occ alone: read them first
-        # take with mode="wrap" reads what cells[free] reads, a little faster.
-        f = np.take(cells, free, mode="wrap")
+        if known is not None:
+            f, before = known
+        else:
+            before = cells[hit]  # hit cells take l_occ alone: read them first
+            # take with mode="wrap" reads what cells[free] reads, a little faster.
+            f = np.take(cells, free, mode="wrap")
         np.maximum(f, l_min - l_free, out=f)
         f += np.int8(l_free)
         # Assigning through repeated indices writes once: one update per cell per scan.
@@ -263,9 +286,10 @@ def _apply(space: CellSpace, free: NDArray[np.integer[Any]], hit: NDArray[np.int
         np.maximum(before, l_min, out=before)
         cells[hit] = before
         return
-    before = cells[hit].astype(np.int16)  # hit cells take l_occ alone: read them first
+    f, before = known if known is not None else (cells[free], cells[hit])   # hit cells: read them first
+    before = before.astype(np.int16)
     # Assigning through repeated indices writes once: one update per cell per scan.
-    cells[free] = np.maximum(cells[free].astype(np.int16) + l_free, l_min)
+    cells[free] = np.maximum(f.astype(np.int16) + l_free, l_min)
     cells[hit] = np.clip(before + l_occ, l_min, l_max)
 
 
@@ -354,7 +378,7 @@ def _group_cells(lines: _Lines, parts: list[NDArray[np.intp]], r: NDArray[np.flo
             hit_cells.append(cells[hit_step[:, g] >= 0])
         else:
             rays = _trace(ln, float(r[bounds[i]]))
-            f, h = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
+            f, h, _ = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
             free.append(f)
             hit_cells.append(h)
     # _apply indexes faster with intp (space.write_type); the narrow type made the passes above cheaper.
@@ -365,15 +389,21 @@ def _group_cells(lines: _Lines, parts: list[NDArray[np.intp]], r: NDArray[np.flo
 def _free_of(flat: NDArray[np.integer[Any]], until: NDArray[np.int64], first_step: NDArray[np.int64],
              valid: NDArray[np.bool_] | None = None) -> NDArray[np.integer[Any]]:
     """The cells of steps first_step <= k < until of flat (n, M, K), where valid."""
+    return flat[_free_mask(flat.shape, until, first_step, valid)]  # boolean indexing: much faster than np.compress
+
+
+def _free_mask(shape: tuple[int, ...], until: NDArray[np.int64], first_step: NDArray[np.int64],
+               valid: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
+    """(n, M, K) steps first_step <= k < until, where valid (a reused work array)."""
     # Row u of the table is the mask k < u: one row copied per beam, cheaper than a
     # comparison broadcast over every step ("clip" clips u to 0 .. K).
-    table = _prefix_masks(flat.shape[2])
-    mask = np.take(table, until, axis=0, out=scratch("raycast_mask", flat.shape, np.bool_), mode="clip")
+    table = _prefix_masks(shape[2])
+    mask = np.take(table, until, axis=0, out=scratch("raycast_mask", shape, np.bool_), mode="clip")
     if first_step.any():
         mask &= ~np.take(table, first_step, axis=0, mode="clip")
     if valid is not None:
         mask &= valid
-    return flat[mask]  # boolean indexing: much faster than np.compress with out
+    return mask
 
 
 @functools.lru_cache(maxsize=64)
@@ -405,14 +435,55 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
     k_guess = int(max_range / grid.resolution) + 2
     per_chunk = max(1, CHUNK_ELEMENTS // (m * k_guess))
     out = np.empty((n_p, m)) if expected else None
-    for a in range(0, n_p, per_chunk):
-        b = min(n_p, a + per_chunk)
-        rays = trace(grid, origins[a:b], angles[a:b], max_range, first=a)
-        if out is not None:
-            out[a:b] = expected_ranges(grid, rays, range_min)
-        hit_step = np.where(hit, rays.step_of_range(ranges), -1)
-        until = np.where(hit, hit_step, rays.step_of_range(free_range) + 1)
-        until = np.where(free_range > 0, until, 0)
-        update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min), steps=steps)
-        rays.space.close()
+    for group in _spaces(grid, [(a, min(n_p, a + per_chunk)) for a in range(0, n_p, per_chunk)],
+                         lambda a, b: _lines(grid, origins[a:b], angles[a:b], max_range)):
+        for a, b, lines in group.chunks:
+            rays = _trace(lines, max_range)
+            cells = None
+            if out is not None:   # every traced cell read once: for the expected ranges and the update
+                cells = _read(rays)
+                k0 = int(rays.first_step_at(range_min).min()) if range_min > 0 else 0
+                out[a:b] = _first_occupied(rays, cells[..., k0:], k0)
+            hit_step = np.where(hit, rays.step_of_range(ranges), -1)
+            until = np.where(hit, hit_step, rays.step_of_range(free_range) + 1)
+            until = np.where(free_range > 0, until, 0)
+            free, hit_cells, known = _cells_to_update(rays, until, hit_step, rays.first_step_at(range_min), cells)
+            _apply(group.space, free, hit_cells, steps, known)
+        group.space.close()
     return out
+
+
+@dataclass
+class _Group:
+    """Chunks of particles (first, stop, their lines in space) sharing one space."""
+
+    space: CellSpace
+    chunks: list[tuple[int, int, _Lines]]
+
+
+def _spaces(grid: GridMaps, chunks: list[tuple[int, int]], lines_of: Callable[[int, int], _Lines],
+            cells: int = SPACE_CELLS) -> Iterator[_Group]:
+    """The chunks (first, stop) in groups, each with the space of the cells their lines
+    reach: consecutive chunks share one while its box holds at most `cells` cells (a
+    space costs some calls to open and close: fewer, larger ones for many small chunks)."""
+    h, w = grid.shape
+    i = 0
+    while i < len(chunks):
+        first = chunks[i][0]
+        members: list[tuple[int, int, _Lines]] = []
+        lo, hi = (w, h), (0, 0)
+        traced = 0
+        while i < len(chunks):
+            a, b = chunks[i]
+            lines = lines_of(a, b)
+            l_lo, l_hi = lines.box()
+            n_lo = (min(lo[0], l_lo[0]), min(lo[1], l_lo[1]))
+            n_hi = (max(hi[0], l_hi[0]), max(hi[1], l_hi[1]))
+            if members and (b - first) * (n_hi[0] - n_lo[0]) * (n_hi[1] - n_lo[1]) > cells:
+                break
+            members.append((a, b, lines))
+            lo, hi, traced = n_lo, n_hi, traced + lines.steps.size * lines.k_max
+            i += 1
+        stop = members[-1][1]
+        space = grid.cells(first, stop, lo, hi, traced=traced)
+        yield _Group(space, [(a, b, ln.in_space(space, a - first)) for a, b, ln in members])

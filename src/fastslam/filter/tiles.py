@@ -299,11 +299,11 @@ class TileMaps(GridMaps):
         h, w = self.shape
         lo = (0, 0) if lo is None else lo
         hi = (w, h) if hi is None else hi
-        (ty, tx), (oy, ox) = self.tile, self.offset
+        oy, ox = self.offset
         r0, c0 = (lo[1] + oy) >> self._ly, (lo[0] + ox) >> self._lx
         r1 = ((max(hi[1], lo[1] + 1) - 1 + oy) >> self._ly) + 1
         c1 = ((max(hi[0], lo[0] + 1) - 1 + ox) >> self._lx) + 1
-        box = (stop - first) * (r1 - r0) * ty * (c1 - c0) * tx
+        box = (stop - first) * (r1 - r0) * (c1 - c0) * self.pool.tile_bytes
         if traced <= 0 or box <= PATCH_FACTOR * traced:
             return TilePatch(self, first, stop, (r0, r1, c0, c1))
         return TileLookup(self, first, stop, (r0, r1, c0, c1))
@@ -325,9 +325,10 @@ class TileMaps(GridMaps):
         return np.asarray(counts[self.table].reshape(self.particles, -1).sum(axis=1), dtype=np.int64)
 
     # -- copy-on-write ----------------------------------------------------------------
-    def _writable(self, slots: NDArray[np.intp]) -> NDArray[np.int32]:
+    def _writable(self, slots: NDArray[np.intp], *, keep: bool = True) -> NDArray[np.int32]:
         """Makes the tiles at the (distinct) table slots their particle's own, a copy for
-        each one shared or unknown; returns their ids."""
+        each one shared or unknown (keep=False: a new tile, contents undefined, for one
+        about to be overwritten whole); returns their ids."""
         flat = self.table.reshape(-1)
         ids = flat[slots]
         pool = self.pool
@@ -335,15 +336,19 @@ class TileMaps(GridMaps):
         shared = np.flatnonzero(copy & (ids != 0))
         if len(shared):
             # a tile whose every holder writes now stays with the first of them
-            held, first, count = np.unique(ids[shared], return_index=True, return_counts=True)
-            keep = count == pool.refs[held]
-            copy[shared[first[keep]]] = False
+            held = ids[shared]
+            count = np.bincount(held, minlength=pool.top)
+            first = np.empty(pool.top, dtype=np.intp)
+            first[held[::-1]] = shared[::-1]              # repeats: the last write, the first slot, wins
+            alone = np.flatnonzero(count[held] == pool.refs[held])
+            copy[first[held[alone]]] = False
         if not copy.any():
             return ids
         old = ids[copy]
         new = pool.alloc(len(old))
-        tiles = pool.tiles
-        tiles[new] = tiles[old]                    # id 0: zeros
+        if keep:
+            tiles = pool.tiles
+            tiles[new] = tiles[old]                # id 0: zeros
         drop = old[old != 0]
         if len(drop):
             np.subtract.at(pool.refs, drop, 1)     # never to 0: shared by more than the writers
@@ -371,19 +376,27 @@ class TilePatch(CellSpace):
     def close(self) -> None:
         maps = self.maps
         k, nr, ty, nc, tx = self.dense.shape
-        if tx % 8 == 0:   # compare 8 cells at a time
-            differ = self.dense.view(np.uint64) != self.before.view(np.uint64)
-        else:
-            differ = self.dense != self.before
-        changed = differ.any(axis=(2, 4))                                       # (k, nr, nc)
-        i, r, c = np.nonzero(changed)
+        i, r, c = np.nonzero(_changed_tiles(self.dense, self.before))
         if len(i) == 0:
             return
         r0, _, c0, _ = self.box
         _, th, tw = maps.table.shape
-        ids = maps._writable((((self.first + i) * th + r0 + r) * tw + c0 + c).astype(np.intp))
+        # a changed tile is written whole: a new one needs no copy of the old cells
+        ids = maps._writable((((self.first + i) * th + r0 + r) * tw + c0 + c).astype(np.intp), keep=False)
         rows = maps.pool.tiles.reshape(-1, tx)
         rows[ids.astype(np.intp)[:, None] * ty + np.arange(ty)] = self.dense[i, r, :, c]
+
+
+def _changed_tiles(dense: NDArray[np.int8], before: NDArray[np.int8]) -> NDArray[np.bool_]:
+    """(k, nr, nc) whether each tile of dense (k, nr, rows, nc, columns) differs from before."""
+    k, nr, ty, nc, tx = dense.shape
+    if tx % 8 or tx > 64:
+        return np.asarray((dense != before).any(axis=(2, 4)))
+    # 8 cells at a time, then the (at most 8) flags of a row of a tile as one integer
+    differ = np.not_equal(dense.view(np.uint64), before.view(np.uint64),
+                          out=scratch("tile_differ", dense.shape[:4] + (tx // 8,), np.bool_))
+    row = differ.view({1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}[tx // 8])[..., 0]   # (k, nr, rows, nc)
+    return np.asarray(np.ascontiguousarray(row.transpose(0, 1, 3, 2)).any(axis=3))
 
 
 class TileLookup(CellSpace):
@@ -446,3 +459,4 @@ class TileLookup(CellSpace):
         self.ids.reshape(-1)[where] = ids
         self._start.reshape(-1)[where] = ids.astype(np.intp) << (self.maps._ly + self.maps._lx)
         return self._positions(slot, within)
+

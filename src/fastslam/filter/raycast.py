@@ -204,22 +204,14 @@ def expected_ranges(grid: GridMaps, rays: Rays, min_range: float = 0.0) -> NDArr
     at: the sensor cannot see them. A beam that meets nothing returns max_range.
     The cells are read through rays.space (grid: the same maps).
     """
-    k0 = int(rays.first_step_at(min_range).min()) if min_range > 0 else 0
-    return _first_occupied(rays, _read(rays, k0), k0)
-
-
-def _read(rays: Rays, k0: int = 0) -> NDArray[np.int8]:
-    """(n, M, K - k0) the cells of steps k0.. of every beam (outside the grid: any value)."""
     space = rays.space
+    cells = space.values
+    k0 = int(rays.first_step_at(min_range).min()) if min_range > 0 else 0
     flat = rays.flat[..., k0:]
-    return space.values.take(space.resolve(flat if rays.inside else np.maximum(flat, 0)))
-
-
-def _first_occupied(rays: Rays, cells: NDArray[np.int8], k0: int) -> NDArray[np.float64]:
-    """expected_ranges from the cells of steps k0.. (_read)."""
-    occupied = cells > 0
-    if not rays.inside:
-        occupied &= rays.flat[..., k0:] >= 0
+    if rays.inside:
+        occupied = cells.take(space.resolve(flat)) > 0
+    else:
+        occupied = (cells.take(space.resolve(np.maximum(flat, 0))) > 0) & (flat >= 0)
     first = occupied.argmax(axis=2)
     hit = np.take_along_axis(occupied, first[..., None], axis=2)[..., 0]
     return np.where(hit, rays.range_of_step(first + k0), rays.max_range)
@@ -236,32 +228,22 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
         first_step: (n, M) steps before it (the sensor's minimum range) are left alone.
         steps: increments and clamps in the grid's int8 units.
     """
-    free, hit, known = _cells_to_update(rays, free_until, hit_step, first_step)
-    _apply(rays.space, free, hit, steps, known)
+    free, hit = _cells_to_update(rays, free_until, hit_step, first_step)
+    _apply(rays.space, free, hit, steps)
 
 
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
-                     first_step: NDArray[np.int64], cells: NDArray[np.int8] | None = None
-                     ) -> tuple[NDArray[np.integer[Any]], NDArray[np.integer[Any]],
-                                tuple[NDArray[np.int8], NDArray[np.int8]] | None]:
-    """Flat indices of the cells to make more free and of the hit cells (see
-    update_logodds), and their values if the values of all steps are given (_read):
-    no second gather of them."""
-    mask = _free_mask(rays.flat.shape, free_until, first_step, valid=None if rays.inside else rays.flat >= 0)
-    free = rays.flat[mask]  # boolean indexing: much faster than np.compress with out
+                     first_step: NDArray[np.int64]) -> tuple[NDArray[np.integer[Any]], NDArray[np.integer[Any]]]:
+    """Flat indices of the cells to make more free and of the hit cells (see update_logodds)."""
+    free = _free_of(rays.flat, free_until, first_step, valid=None if rays.inside else rays.flat >= 0)
     has_hit = hit_step >= 0
-    at = np.where(has_hit, hit_step, 0)[..., None]
-    hit = np.take_along_axis(rays.flat, at, axis=2)[..., 0]
-    sel = has_hit & (hit >= 0)
-    if cells is None:
-        return free, hit[sel], None
-    return free, hit[sel], (cells[mask], np.take_along_axis(cells, at, axis=2)[..., 0][sel])
+    hit = np.take_along_axis(rays.flat, np.where(has_hit, hit_step, 0)[..., None], axis=2)[..., 0]
+    return free, hit[has_hit & (hit >= 0)]
 
 
 def _apply(space: CellSpace, free: NDArray[np.integer[Any]], hit: NDArray[np.integer[Any]],
-           steps: LogOddsSteps, known: tuple[NDArray[np.int8], NDArray[np.int8]] | None = None) -> None:
-    """One scan's update of the cells free (repeats allowed) and hit of space; known:
-    their values now, if already read (copies: they are changed)."""
+           steps: LogOddsSteps) -> None:
+    """One scan's update of the cells free (repeats allowed) and hit of space."""
     l_free, l_occ, l_min, l_max = steps
     free, hit = space.writable(free), space.writable(hit)
     cells = space.values
@@ -271,12 +253,9 @@ def _apply(space: CellSpace, free: NDArray[np.integer[Any]], hit: NDArray[np.int
         # Indexing with intp indices is much faster than with int32 ones or put.
         free = free.astype(np.intp, copy=False)
         hit = hit.astype(np.intp, copy=False)
-        if known is not None:
-            f, before = known
-        else:
-            before = cells[hit]  # hit cells take l_occ alone: read them first
-            # take with mode="wrap" reads what cells[free] reads, a little faster.
-            f = np.take(cells, free, mode="wrap")
+        before = cells[hit]  # hit cells take l_occ alone: read them first
+        # take with mode="wrap" reads what cells[free] reads, a little faster.
+        f = np.take(cells, free, mode="wrap")
         np.maximum(f, l_min - l_free, out=f)
         f += np.int8(l_free)
         # Assigning through repeated indices writes once: one update per cell per scan.
@@ -286,10 +265,9 @@ def _apply(space: CellSpace, free: NDArray[np.integer[Any]], hit: NDArray[np.int
         np.maximum(before, l_min, out=before)
         cells[hit] = before
         return
-    f, before = known if known is not None else (cells[free], cells[hit])   # hit cells: read them first
-    before = before.astype(np.int16)
+    before = cells[hit].astype(np.int16)  # hit cells take l_occ alone: read them first
     # Assigning through repeated indices writes once: one update per cell per scan.
-    cells[free] = np.maximum(f.astype(np.int16) + l_free, l_min)
+    cells[free] = np.maximum(cells[free].astype(np.int16) + l_free, l_min)
     cells[hit] = np.clip(before + l_occ, l_min, l_max)
 
 
@@ -378,7 +356,7 @@ def _group_cells(lines: _Lines, parts: list[NDArray[np.intp]], r: NDArray[np.flo
             hit_cells.append(cells[hit_step[:, g] >= 0])
         else:
             rays = _trace(ln, float(r[bounds[i]]))
-            f, h, _ = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
+            f, h = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
             free.append(f)
             hit_cells.append(h)
     # _apply indexes faster with intp (space.write_type); the narrow type made the passes above cheaper.
@@ -389,21 +367,15 @@ def _group_cells(lines: _Lines, parts: list[NDArray[np.intp]], r: NDArray[np.flo
 def _free_of(flat: NDArray[np.integer[Any]], until: NDArray[np.int64], first_step: NDArray[np.int64],
              valid: NDArray[np.bool_] | None = None) -> NDArray[np.integer[Any]]:
     """The cells of steps first_step <= k < until of flat (n, M, K), where valid."""
-    return flat[_free_mask(flat.shape, until, first_step, valid)]  # boolean indexing: much faster than np.compress
-
-
-def _free_mask(shape: tuple[int, ...], until: NDArray[np.int64], first_step: NDArray[np.int64],
-               valid: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
-    """(n, M, K) steps first_step <= k < until, where valid (a reused work array)."""
     # Row u of the table is the mask k < u: one row copied per beam, cheaper than a
     # comparison broadcast over every step ("clip" clips u to 0 .. K).
-    table = _prefix_masks(shape[2])
-    mask = np.take(table, until, axis=0, out=scratch("raycast_mask", shape, np.bool_), mode="clip")
+    table = _prefix_masks(flat.shape[2])
+    mask = np.take(table, until, axis=0, out=scratch("raycast_mask", flat.shape, np.bool_), mode="clip")
     if first_step.any():
         mask &= ~np.take(table, first_step, axis=0, mode="clip")
     if valid is not None:
         mask &= valid
-    return mask
+    return flat[mask]  # boolean indexing: much faster than np.compress with out
 
 
 @functools.lru_cache(maxsize=64)
@@ -439,16 +411,12 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
                          lambda a, b: _lines(grid, origins[a:b], angles[a:b], max_range)):
         for a, b, lines in group.chunks:
             rays = _trace(lines, max_range)
-            cells = None
-            if out is not None:   # every traced cell read once: for the expected ranges and the update
-                cells = _read(rays)
-                k0 = int(rays.first_step_at(range_min).min()) if range_min > 0 else 0
-                out[a:b] = _first_occupied(rays, cells[..., k0:], k0)
+            if out is not None:
+                out[a:b] = expected_ranges(grid, rays, range_min)
             hit_step = np.where(hit, rays.step_of_range(ranges), -1)
             until = np.where(hit, hit_step, rays.step_of_range(free_range) + 1)
             until = np.where(free_range > 0, until, 0)
-            free, hit_cells, known = _cells_to_update(rays, until, hit_step, rays.first_step_at(range_min), cells)
-            _apply(group.space, free, hit_cells, steps, known)
+            update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min), steps=steps)
         group.space.close()
     return out
 

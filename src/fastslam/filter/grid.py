@@ -21,7 +21,7 @@ implement it; code outside this module and the backends never touches the storag
   and writes a box of cells of particles first..stop-1 through (``close()`` it after
   writing);
 - ``put(n, iy, ix, values)``: writes cells (tests, tools);
-- ``view(n)``: the maps of particle n alone, sharing its cells (reads);
+- ``view(n)``: the maps of particle n alone, sharing its cells (reads); ``copy()``;
 - ``reorder(parent)`` after resampling, ``grow_to`` keeping world coordinates,
   ``known_cells()``, ``occupancy(n)``, ``probability(n)``;
 - memory: ``nbytes`` (allocated now), ``growth_bytes(...)`` (what a growth adds),
@@ -255,6 +255,14 @@ class GridMaps:
     def put(self, n: ArrayLike, iy: ArrayLike, ix: ArrayLike, values: ArrayLike) -> None:
         """Writes cells (iy, ix) of particles n (as values reads them)."""
         self.logodds[n, iy, ix] = values
+
+    def copy(self) -> GridMaps:
+        """Independent maps with the same cells and geometry."""
+        other = GridMaps.__new__(GridMaps)
+        other.__dict__.update(self.__dict__)
+        other.origin = self.origin.copy()
+        other.logodds = self.logodds.copy()
+        return other
 
     def view(self, n: int) -> GridMaps:
         """A GridMaps of particle n's map alone, sharing its cells (no copy): for reads of

@@ -17,6 +17,7 @@ from fastslam.config import SlamConfig
 from fastslam.filter import raycast
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
+from fastslam.filter.tiles import TileMaps
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
 from fastslam.filter.proposal import gate_match, match_request
 from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
@@ -52,7 +53,7 @@ class StepInfo:
 class FastSlam:
     """The particle set: poses (N, 3), log-weights (N,), maps (N, H, W), trajectories."""
 
-    maps_type: type[GridMaps] = GridMaps   # the maps' storage (fastslam.filter.tiles.TileMaps: shared tiles)
+    maps_type: type[GridMaps] = TileMaps   # the maps' storage: shared copy-on-write tiles (GridMaps: dense)
 
     def __init__(self, cfg: SlamConfig, rng: np.random.Generator | None = None) -> None:
         self.cfg = cfg

@@ -36,7 +36,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import ArrayLike, NDArray
 
 
-TILE = (32, 32)        # rows, columns of a tile (powers of two); see docs/benchmarks.md, "Maps"
+TILE = (32, 64)        # rows, columns of a tile (powers of two); see docs/benchmarks.md, "Maps"
 # A box the beams visit densely is copied (TilePatch) when its cells are at most this
 # many times the cells traced; else each index is translated to its tile (TileLookup).
 PATCH_FACTOR = 4.0
@@ -281,6 +281,18 @@ class TileMaps(GridMaps):
         ids = self.table.reshape(-1).take(slots)
         tiles = self.pool.tiles.reshape(-1)
         tiles[self._positions(ids, ly.reshape(-1), lx.reshape(-1))] = np.broadcast_to(values, n_.shape).reshape(-1)
+
+    def copy(self) -> GridMaps:
+        """Independent maps with the same cells and geometry (their own tiles)."""
+        other = TileMaps.__new__(TileMaps)
+        other.__dict__.update(self.__dict__)
+        other.origin, other.table = self.origin.copy(), self.table.copy()
+        pool = other.pool = TilePool(self.tile, self.pool.capacity)
+        pool.tiles[:self.pool.top] = self.pool.tiles[:self.pool.top]
+        pool.refs[:] = self.pool.refs
+        pool.top = self.pool.top
+        pool.push_free(self.pool.free_ids())
+        return other
 
     def view(self, n: int) -> GridMaps:
         """As GridMaps.view: particle n's table (a view) over the same tiles, for reads."""

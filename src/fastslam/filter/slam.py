@@ -17,11 +17,11 @@ from fastslam.config import SlamConfig
 from fastslam.filter import raycast
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
-from fastslam.filter.tiles import TileMaps
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
 from fastslam.filter.proposal import gate_match, match_request
 from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
+from fastslam.filter.tiles import TileMaps
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses

@@ -21,7 +21,7 @@ implement it; code outside this module and the backends never touches the storag
   and writes a box of cells of particles first..stop-1 through (``close()`` it after
   writing);
 - ``put(n, iy, ix, values)``: writes cells (tests, tools);
-- ``view(n)``: the maps of particle n alone, sharing its cells (reads); ``copy()``;
+- ``view(first, stop)``: the maps of some particles, sharing their cells (reads); ``copy()``;
 - ``reorder(parent)`` after resampling, ``grow_to`` keeping world coordinates,
   ``known_cells()``, ``occupancy(n)``, ``probability(n)``;
 - memory: ``nbytes`` (allocated now), ``growth_bytes(...)`` (what a growth adds),
@@ -264,14 +264,16 @@ class GridMaps:
         other.logodds = self.logodds.copy()
         return other
 
-    def view(self, n: int) -> GridMaps:
-        """A GridMaps of particle n's map alone, sharing its cells (no copy): for reads of
-        that map only (the matcher tracking one particle)."""
-        one = GridMaps.__new__(GridMaps)
-        one._init_geometry(1, self.shape, self.resolution, (float(self.origin[0]), float(self.origin[1])), 1.0)
-        one.scale = self.scale
-        one.logodds = self.logodds[n:n + 1]
-        return one
+    def view(self, first: int, stop: int | None = None) -> GridMaps:
+        """A GridMaps of the maps of particles first..stop-1 (default particle first
+        alone), sharing their cells (no copy): for reads of those maps only."""
+        stop = first + 1 if stop is None else stop
+        some = GridMaps.__new__(GridMaps)
+        some._init_geometry(stop - first, self.shape, self.resolution, (float(self.origin[0]), float(self.origin[1])),
+                            1.0)
+        some.scale = self.scale
+        some.logodds = self.logodds[first:stop]
+        return some
 
     def cells(self, first: int, stop: int, lo: tuple[int, int] | None = None, hi: tuple[int, int] | None = None,
               *, traced: int = 0) -> CellSpace:

@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 SPACE_CELLS = 1 << 20     # cells of a space shared by consecutive chunks (see _spaces)
 # The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
-TRIM_CHUNK_ELEMENTS = 1 << 19
+TRIM_CHUNK_ELEMENTS = 1 << 18
 
 
 @dataclass
@@ -303,8 +303,11 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
     # each beam traced to its group's length (all groups at once: fewer, small, numpy calls)
     r = np.concatenate([np.full(len(sel), float(min(reach[sel].max(), max_range)) + grid.resolution)
                         for sel in parts])
-    k_mean = float(np.mean(reach[order])) / grid.resolution + 2
-    per_chunk = max(1, int(TRIM_CHUNK_ELEMENTS // (len(order) * k_mean)))
+    # a chunk's work arrays: the cells of its longest group, and the cells it frees (about)
+    longest = max(len(sel) * (int(float(r[i]) / grid.resolution) + 2)
+                  for i, sel in zip(np.cumsum([0] + [len(sel) for sel in parts])[:-1], parts))
+    per_particle = max(longest, int(len(order) * (float(np.mean(reach[order])) / grid.resolution + 2)))
+    per_chunk = max(1, TRIM_CHUNK_ELEMENTS // per_particle)
     h, w = grid.shape
     for a in range(0, n_p, per_chunk):
         b = min(n_p, a + per_chunk)
@@ -322,7 +325,7 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
                 inside = marked_cells[ok]
                 lo = (min(lo[0], int(inside[:, 0].min())), min(lo[1], int(inside[:, 1].min())))
                 hi = (max(hi[0], int(inside[:, 0].max()) + 1), max(hi[1], int(inside[:, 1].max()) + 1))
-        space = grid.cells(a, b, lo, hi, traced=int(lines.steps.shape[1] * k_mean) * (b - a))
+        space = grid.cells(a, b, lo, hi, traced=per_particle * (b - a))
         free_cells, hit_cells = _group_cells(lines.in_space(space), parts, r, ranges[cols], hit[cols],
                                              free_range[cols], range_min=range_min)
         if ok.any():

@@ -36,7 +36,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import ArrayLike, NDArray
 
 
-TILE = (32, 64)        # rows, columns of a tile (powers of two); see docs/benchmarks.md, "Maps"
+TILE = (32, 32)        # rows, columns of a tile (powers of two); see docs/benchmarks.md, "Maps"
 # A box the beams visit densely is copied (TilePatch) when its cells are at most this
 # many times the cells traced; else each index is translated to its tile (TileLookup).
 PATCH_FACTOR = 4.0
@@ -234,19 +234,32 @@ class TileMaps(GridMaps):
         """As GridMaps.values_around. Each point's cells are its own cell's position plus
         the offset within its tile; only points whose kernel leaves their tile (near
         its edges) are looked up cell by cell."""
-        ty, tx = self.tile
+        (ty, tx), (oy, ox), (sy, sx) = self.tile, self.offset, (self._ly, self._lx)
+        _, th, tw = self.table.shape
         dy_, dx_ = np.asarray(dy, dtype=np.intp), np.asarray(dx, dtype=np.intp)
-        n_, ly, lx = self._lattice(n, iy, ix)
-        base = self._positions(self.table.reshape(-1).take(self._slots(n_, ly, lx)), ly, lx)
+        n_ = np.asarray(n, dtype=np.intp)
+        shape = np.broadcast(n_, np.asarray(iy), np.asarray(ix)).shape
+        ly = np.add(np.broadcast_to(iy, shape), oy, dtype=np.intp)     # lattice cells of the points
+        lx = np.add(np.broadcast_to(ix, shape), ox, dtype=np.intp)
+        slot = ly >> sy
+        slot *= tw
+        slot += lx >> sx
+        slot += n_ * (th * tw)
+        base = self.table.reshape(-1).take(slot).astype(np.intp)      # pool position of each point's cell
+        base <<= sy + sx
         ry, rx = ly & (ty - 1), lx & (tx - 1)
-        inner = ((ry >= -int(dy_.min())) & (ry < ty - int(dy_.max())) & (rx >= -int(dx_.min()))
-                 & (rx < tx - int(dx_.max())))
+        base |= ry << sx
+        base |= rx
+        inner = ry >= -int(dy_.min())
+        inner &= ry < ty - int(dy_.max())
+        inner &= rx >= -int(dx_.min())
+        inner &= rx < tx - int(dx_.max())
         pos = base[None] + (dy_ * tx + dx_).reshape((-1,) + (1,) * base.ndim)      # (K,) + shape
         edge = np.flatnonzero(~inner)
         if len(edge):
             ey = ly.reshape(-1)[edge] + dy_[:, None]                                # (K, E)
             ex = lx.reshape(-1)[edge] + dx_[:, None]
-            ids = self.table.reshape(-1).take(self._slots(n_.reshape(-1)[edge], ey, ex))
+            ids = self.table.reshape(-1).take(self._slots(np.broadcast_to(n_, shape).reshape(-1)[edge], ey, ex))
             pos.reshape(len(dy_), -1)[:, edge] = self._positions(ids, ey, ex)
         return self.pool.tiles.reshape(-1).take(pos, out=out)
 
@@ -294,15 +307,14 @@ class TileMaps(GridMaps):
         pool.push_free(self.pool.free_ids())
         return other
 
-    def view(self, n: int) -> GridMaps:
-        """As GridMaps.view: particle n's table (a view) over the same tiles, for reads."""
-        one = TileMaps.__new__(TileMaps)
-        one._init_geometry(1, self.shape, self.resolution, (float(self.origin[0]), float(self.origin[1])), 1.0)
-        one.scale = self.scale
-        one.tile, one._ly, one._lx, one.offset = self.tile, self._ly, self._lx, self.offset
-        one.table = self.table[n:n + 1]
-        one.pool = self.pool
-        return one
+    def view(self, first: int, stop: int | None = None) -> GridMaps:
+        """As GridMaps.view: the particles' tables (a view) over the same tiles, for reads."""
+        stop = first + 1 if stop is None else stop
+        some = TileMaps.__new__(TileMaps)
+        some.__dict__.update(self.__dict__)
+        some.particles, some.origin = stop - first, self.origin.copy()
+        some.table = self.table[first:stop]
+        return some
 
     def cells(self, first: int, stop: int, lo: tuple[int, int] | None = None, hi: tuple[int, int] | None = None,
               *, traced: int = 0) -> CellSpace:

@@ -24,7 +24,8 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 
 POOL = 4               # coarse level: cells per side of a pooled cell
 SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further
-POOL_MAPS = 8          # maps pooled at a time: the work arrays stay in cache
+POOL_CELLS = 1 << 20   # cells pooled at a time (maps x window): the work arrays stay small
+SEARCH_CELLS = 1 << 16  # candidate end points (particles x turns x end points) searched at a time
 
 
 def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
@@ -46,6 +47,10 @@ def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64],
     themselves (a GridMaps: its log-odds). Candidate t = (dy + k) * (2k + 1) + (dx + k).
     """
     n = len(poses)
+    per = max(1, SEARCH_CELLS // max(n * len(local), 1))
+    if len(turns) > per:   # a few turns at a time: the (N, A, M) work arrays stay small
+        return np.concatenate([grid_search(level, origin, cell, poses, turns[a:a + per], local, k, flags)
+                               for a in range(0, len(turns), per)], axis=1)
     hv, wv = level.shape if isinstance(level, GridMaps) else level.shape[1:]
     cand = np.repeat(poses[:, None, :], len(turns), axis=1)
     cand[..., 2] += turns
@@ -55,25 +60,31 @@ def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64],
     cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
     cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
     d = np.arange(-k, k + 1)
-    # End points first: one gather per shift (no (N, A, T, M) index array), and the sum
-    # over end points adds whole (N, A) slabs. Every shifted cell is inside (clamped above).
-    shape = (len(d) ** 2, len(local), n, len(turns))
-    vals = scratch("grid_search", shape, np.int8)                            # (T, M, N, A), reused
-    if isinstance(level, GridMaps):
-        level.values_around(np.arange(n)[None, :, None], cy.transpose(2, 0, 1), cx.transpose(2, 0, 1),
-                            np.repeat(d, len(d)), np.tile(d, len(d)), out=vals)
-    else:
-        flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx            # (N, A, M)
-        shifts = (d[:, None] * wv + d[None, :]).reshape(-1).tolist()        # (T,), ascending
-        lo = shifts[0]
-        at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)   # (M, N, A)
-        at += lo                                                            # >= 0: cells are clamped k from the edge
-        f = level.reshape(-1)
-        for i, s in enumerate(shifts):
-            np.take(f[s - lo:], at, out=vals[i], mode="clip")               # cells flat + s (s - lo >= 0)
     # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
     acc = np.int8 if len(local) < 128 else np.int16
-    sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)  # (T, N, A)
+    # End points first: one gather per shift (no (N, A, T, M) index array), and the sum
+    # over end points adds whole (N, A) slabs. Every shifted cell is inside (clamped above).
+    if isinstance(level, GridMaps):
+        vals = level.values_around(np.arange(n)[None, :, None], cy.transpose(2, 0, 1), cx.transpose(2, 0, 1),
+                                   np.repeat(d, len(d)), np.tile(d, len(d)))       # (T, M, N, A)
+        sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)      # (T, N, A)
+        return sums.transpose(1, 2, 0).astype(np.int64, order="C")
+    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx                # (N, A, M)
+    shifts = (d[:, None] * wv + d[None, :]).reshape(-1).tolist()            # (T,), ascending
+    lo = shifts[0]
+    at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)       # (M, N, A)
+    at += lo                                                                # >= 0: cells are clamped k from the edge
+    f = level.reshape(-1)
+    # all shifts' cells at once and one sum, or (a wide search) each shift's cells summed in turn
+    together = len(shifts) * at.size <= SEARCH_CELLS * 16
+    vals = scratch("grid_search", ((len(shifts),) if together else ()) + at.shape, np.int8)
+    sums = np.empty((len(shifts), n, len(turns)), dtype=acc)                 # (T, N, A)
+    for i, s in enumerate(shifts):
+        np.take(f[s - lo:], at, out=vals[i] if together else vals, mode="clip")   # cells flat + s (s - lo >= 0)
+        if not together:
+            np.sum(vals if flags else _cell_score(vals), axis=0, dtype=acc, out=sums[i])
+    if together:
+        np.sum(vals if flags else _cell_score(vals), axis=1, dtype=acc, out=sums)
     return sums.transpose(1, 2, 0).astype(np.int64, order="C")
 
 
@@ -126,15 +137,8 @@ def pool_occupied(level: NDArray[np.int8], above: int = 0) -> tuple[NDArray[np.i
 
     Any cell above `above` is the block's maximum above it (see _block_max).
     """
-    n, h, w = level.shape
-    half = np.empty((n, h // 2, w // 2), dtype=np.int8)
-    quarter = np.empty((n, h // 4, w // 4), dtype=np.int8)
-    for a in range(0, n, POOL_MAPS):
-        b = min(n, a + POOL_MAPS)
-        m2 = _block_max(level[a:b], "pool2")
-        np.greater(m2, above, out=half[a:b].view(np.bool_))
-        np.greater(_block_max(m2, "pool4"), above, out=quarter[a:b].view(np.bool_))
-    return half, quarter
+    m2 = _block_max(level, "pool2")
+    return (m2 > above).view(np.int8), (_block_max(m2, "pool4") > above).view(np.int8)
 
 
 def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
@@ -147,15 +151,8 @@ def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.i
     a room, the wrong side of a wall) cannot hide. They are the sign of the block's
     maximum: above 0 if any cell is occupied, below 0 if every cell is free.
     """
-    n, h, w = level.shape
-    half = np.empty((n, h // 2, w // 2), dtype=np.int8)
-    quarter = np.empty((n, h // 4, w // 4), dtype=np.int8)
-    for a in range(0, n, POOL_MAPS):
-        b = min(n, a + POOL_MAPS)
-        m2 = _block_max(level[a:b], "pool2")
-        np.sign(m2, out=half[a:b])
-        np.sign(_block_max(m2, "pool4"), out=quarter[a:b])
-    return half, quarter
+    m2 = _block_max(level, "pool2")
+    return np.sign(m2), np.sign(_block_max(m2, "pool4"))
 
 
 def _block_max(level: NDArray[np.int8], key: str) -> NDArray[np.int8]:

@@ -3,7 +3,7 @@
     PYTHONPATH=src:. python -m bench [speed] [intel] [office] [matcher] [longrun] [accuracy]   (default: all)
 
 speed: one filter step for N in {20, 50, 100}, 60 and 360 beams, 10 m and 40 m maps.
-intel, office: accuracy of the improved mode against the assignment (bench.modes).
+intel, office: the presets' accuracy (real and slam on Intel, burger and slam on the office; bench.modes).
 accuracy: config/real.yaml over the whole development set through the offline tool.
 matcher: the scan matcher alone against reference poses.
 longrun: 30 simulated minutes of the office loop, time and memory sampled.

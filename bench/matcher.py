@@ -7,8 +7,10 @@ that step (seeded). The matcher sees the same prior as in the filter (centred on
 erring prediction, or the window prior round the sample). Prints the bias and spread of matched - reference in the robot
 frame, which the filter's chaotic end results cannot show.
 
-    python -m bench.matcher [intel|office] [--config config/real.yaml]
-        [--limit 400] [--set key=value]...
+    python -m bench.matcher [intel|office] [--config FILE] [--limit 400] [--set key=value]...
+
+The preset measured is the one for the data's laser: config/real.yaml on Intel,
+config/burger.yaml (the LDS-01's) on the office, unless --config names another.
 """
 from __future__ import annotations
 
@@ -29,6 +31,7 @@ from fastslam.geometry import compose, relative
 from fastslam.match import MatchParams, match_poses
 
 ROOT = Path(__file__).resolve().parents[1]
+PRESETS = {"intel": ROOT / "config" / "real.yaml", "office": ROOT / "config" / "burger.yaml"}
 
 
 def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
@@ -43,11 +46,10 @@ def intel_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 
 def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
     """(true pose, scan) of the simulator's office route, perfect odometry."""
-    from bench.modes import LDS01
     from fastslam.eval.trajectory import match_by_time
     from fastslam.simrun import run
 
-    cfg = SlamConfig.from_dict({"proposal": "odometry", "toggle_noise": 0, "particles": 1, **LDS01})
+    cfg = SlamConfig.from_yaml(PRESETS["office"], {"proposal": "odometry", "toggle_noise": 0, "particles": 1})
     sim = run("office", cfg, seed=0, sim={"odom_noise": False}, record=True)
     for rec in sim.scans[:limit]:
         pose = match_by_time(sim.truth[:, 0], sim.truth[:, 1:], [rec.t], np.zeros((1, 3)), interpolate=True)[1][0]
@@ -58,7 +60,8 @@ def office_scans(limit: int | None) -> Iterator[tuple[np.ndarray, Scan]]:
 def match_errors(cfg: SlamConfig, scans: Iterator[tuple[np.ndarray, Scan]], seed: int = 0) -> np.ndarray:
     """(K, 3) matched - reference (along, across [m], heading [rad]) of trusted matches."""
     # The map is written at the reference poses: one particle moved exactly by them.
-    mapper = FastSlam(cfg.replace(particles=1, proposal="odometry", motion_model="odometry", toggle_noise=0))
+    mapper = FastSlam(cfg.replace(particles=1, proposal="odometry", motion_model="odometry", toggle_noise=0,
+                                track_scans=False))
     params = MatchParams.from_config(cfg)
     rng = np.random.default_rng(seed)
     alphas = (cfg.srr, cfg.srt, cfg.str, cfg.stt)
@@ -93,19 +96,15 @@ def summary(err: np.ndarray) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data", nargs="?", default="intel", choices=("intel", "office"))
-    parser.add_argument("--config", type=Path, default=ROOT / "config" / "real.yaml")
+    parser.add_argument("--config", type=Path, help="default: the data's preset (real.yaml, burger.yaml)")
     parser.add_argument("--limit", type=int, default=None, help="first scans of the data only")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args(argv)
-    overrides = dict(parse_override(s) for s in args.set)
-    if args.data == "office":
-        from bench.modes import LDS01
-
-        overrides = {**LDS01, **overrides}
-    cfg = SlamConfig.from_yaml(args.config, overrides)
+    config = args.config or PRESETS[args.data]
+    cfg = SlamConfig.from_yaml(config, dict(parse_override(s) for s in args.set))
     scans = intel_scans(args.limit) if args.data == "intel" else office_scans(args.limit)
-    print(f"{args.data} ({args.config.name}): {summary(match_errors(cfg, scans, args.seed))}")
+    print(f"{args.data} ({config.name}): {summary(match_errors(cfg, scans, args.seed))}")
     return 0
 
 

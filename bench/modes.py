@@ -1,5 +1,6 @@
-"""The improved mode against the assignment: the Intel Research Lab log (`make bench intel`)
-and the simulated office loop (`make bench office`).
+"""The presets against each other: the Intel Research Lab log (`make bench intel`) and the
+simulated office loop (`make bench office`). Each case runs a preset of config/ exactly as
+a user gets it (only the seed set), so a row named `burger` measures config/burger.yaml.
 
 The log's poses are the corrected trajectory; the filter gets odometry re-integrated
 from them with the noise model of :mod:`fastslam.sim.odometry_noise` (level 1, seeded) and
@@ -8,10 +9,11 @@ rigid 2D alignment) and RPE (consecutive processed scans) of the best particle's
 trajectory, wall time, milliseconds per processed scan and the peak memory of the
 process (each case runs in its own interpreter), plus a dead-reckoning row.
 
-    python -m bench.modes [--seeds 0 1 2] [--level 1.0] [--office]
+    python -m bench.modes [--seeds 0 1 2] [--level 1.0] [--configs real slam] [--office]
 
---office runs the simulated office loop instead (office_suite: fastslam.simrun, no
-ROS), the improved mode with the LDS-01's 3.5 m range against the assignment.
+Intel: `real` (real data) and `slam` (the assignment). --office runs the simulated office
+loop instead (office_suite: fastslam.simrun, no ROS, the LDS-01's 3.5 m range): `burger`
+(the preset for that laser) and `slam`.
 """
 from __future__ import annotations
 
@@ -35,8 +37,9 @@ from fastslam.sim.odometry_noise import noisy_odometry
 ROOT = Path(__file__).resolve().parents[1]
 # shared/ lies beside the repository (CI clones main next to it), /work/shared here
 INTEL_LOG = data_path("intel-corrected.log.gz")
-CONFIGS = {"improved": ROOT / "config" / "real.yaml", "assignment": ROOT / "config" / "slam.yaml"}
-PARTICLES = {"improved": 30, "assignment": None}  # None: as the file says
+CONFIGS = {name: ROOT / "config" / f"{name}.yaml" for name in ("slam", "burger", "real")}
+INTEL_CONFIGS = ("real", "slam")
+OFFICE_CONFIGS = ("burger", "slam")
 
 
 def intel_run(cfg: SlamConfig, seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG,
@@ -61,10 +64,7 @@ def intel_run(cfg: SlamConfig, seed: int, *, level: float = 1.0, log_path: Path 
 def intel_case(name: str, seed: int, *, level: float = 1.0, log_path: Path = INTEL_LOG,
                limit: int | None = None) -> dict:
     """Runs one configuration on the log in this process and returns its figures."""
-    overrides: dict = {"seed": seed}
-    if PARTICLES.get(name):
-        overrides["particles"] = PARTICLES[name]
-    cfg = SlamConfig.from_yaml(CONFIGS[name], overrides)
+    cfg = SlamConfig.from_yaml(CONFIGS[name], {"seed": seed})
     _, ref, est, wall, processed = intel_run(cfg, seed, level=level, log_path=log_path, limit=limit)
     rpe_t, rpe_r = rpe(ref, est)
     return {"config": name, "seed": seed, "particles": cfg.particles, "ate_m": ate(ref, est),
@@ -90,7 +90,7 @@ def _row(r: dict) -> str:
 
 
 def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
-                configs: tuple[str, ...] = ("improved", "assignment")) -> list[dict]:
+                configs: tuple[str, ...] = INTEL_CONFIGS) -> list[dict]:
     """Every configuration and seed in a fresh interpreter (one at a time); prints a table."""
     if not INTEL_LOG.exists():
         print(f"intel: {INTEL_LOG} not found, skipped")
@@ -112,28 +112,18 @@ def intel_suite(seeds: tuple[int, ...] = (0, 1, 2), level: float = 1.0,
     return rows
 
 
-# The improved mode on the simulator's LDS-01 (3.5 m, 5 Hz): real.yaml with the laser's
-# range, the assignment's clearing of no-returns (the simulated LDS-01 reports inf), and
-# gmapping-like update gating with the narrower match window its smaller steps need.
-LDS01 = {"max_range": 3.5, "no_return_range": 3.5, "linear_update": 0.2, "angular_update": 0.2,
-         "match_xy_range": 0.2, "match_theta_range": 0.2, "free_beam_step": 1}
-
-
 def office_case(name: str, seed: int, world: str = "office") -> dict:
     """One simulated run of the office route (fastslam.simrun, no ROS) and its figures."""
     from fastslam.simrun import run
 
-    overrides: dict = {"seed": seed, **(LDS01 if name == "improved" else {})}
-    if PARTICLES.get(name):
-        overrides["particles"] = PARTICLES[name]
-    cfg = SlamConfig.from_yaml(CONFIGS[name], overrides)
+    cfg = SlamConfig.from_yaml(CONFIGS[name], {"seed": seed})
     result = run(world, cfg, seed=seed)
     return {"config": name, "seed": seed, "particles": cfg.particles, **result.metrics(),
             "filter_s": result.seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
 def office_suite(seeds: tuple[int, ...] = (0, 1, 2),
-                 configs: tuple[str, ...] = ("improved", "assignment")) -> list[dict]:
+                 configs: tuple[str, ...] = OFFICE_CONFIGS) -> list[dict]:
     """The office loop in the simulator for each configuration and seed; prints a table
     of the best particle's trajectory RMS error against the simulator's truth."""
     print("Simulated office loop (LDS-01 3.5 m, noisy odometry); filter s: time spent in the filter")
@@ -157,7 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--level", type=float, default=1.0, help="odometry noise level")
-    parser.add_argument("--configs", nargs="+", default=["improved", "assignment"], choices=sorted(CONFIGS))
+    parser.add_argument("--configs", nargs="+", choices=sorted(CONFIGS),
+                        help=f"presets (default: {' '.join(INTEL_CONFIGS)}; --office: {' '.join(OFFICE_CONFIGS)})")
     parser.add_argument("--office", action="store_true", help="the simulated office loop instead of Intel")
     parser.add_argument("--case", help=argparse.SUPPRESS)  # one case, run by in_own_process
     args = parser.parse_args(argv)
@@ -166,9 +157,9 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(office_case(*rest) if kind == "office" else intel_case(*rest[:2], level=rest[2])))
         return 0
     if args.office:
-        office_suite(tuple(args.seeds), tuple(args.configs))
+        office_suite(tuple(args.seeds), tuple(args.configs or OFFICE_CONFIGS))
     else:
-        intel_suite(tuple(args.seeds), args.level, tuple(args.configs))
+        intel_suite(tuple(args.seeds), args.level, tuple(args.configs or INTEL_CONFIGS))
     return 0
 
 

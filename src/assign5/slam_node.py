@@ -105,14 +105,15 @@ class SlamNode:
                 info = self.front.add_scan(convert.scan_from_msg(msg, mount, upside_down))
             finally:
                 self._log_events()
+            # the live pose: the best particle at an update, tracked (track_scans) or moved by
+            # odometry between updates, as the offline tool's live_poses.txt
+            self.map_to_odom = compose(self.slam.live_pose, inverse(self.front.scan_odom))
             if not info.processed:
                 return
             if info.clipped and not self.warned_clip:
                 self.warned_clip = True
                 rospy.logwarn("the robot is near the map's edge and map_grow is false: beams past the "
                               "edge are clipped from now on (warned once)")
-            best = self.slam.poses[self.slam.best]
-            self.map_to_odom = compose(best, inverse(self.front.last_odom))
             self.updates += 1
             self.entropy = info.entropy
         self._publish_update(msg.header.stamp, info)

@@ -143,6 +143,9 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as err:  # the bag library's own errors: one line, never a traceback
         print(f"error: writing {args.out} failed: {type(err).__name__}: {err}", file=sys.stderr)
         return 1
+    if log.skipped:
+        print(f"warning: {len(log.skipped)} ODOM line(s) left out (not needed: the odometry is re-integrated "
+              f"from the scans' poses); first: {log.skipped[0]}", file=sys.stderr)
     duration = float(result.times[-1] - result.times[0]) if result.scans > 1 else 0.0
     drift = ate(result.truth, result.odometry)
     end = float(np.hypot(*(result.truth[-1, :2] - result.odometry[-1, :2])))

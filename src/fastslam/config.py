@@ -88,6 +88,8 @@ class SlamConfig:
     match_min_known: int = _num(100, 0, 10**9,
                                 "occupied 4x4-cell blocks a particle's map needs within scan reach before matching")
     match_beams: int = _num(60, 4, 10000, "scan-match with at most this many returns, evenly spread")
+    match_icp_beams: int = _num(0, 0, 10000, "match_refine: icp: on at most this many returns (the ICP costs little "
+                                "per end point, the search and the weights much); 0 = match_beams")
     match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")
     match_sigma_xy: float = _num(0.01, 0.0, 1.0, "spread of the sample around a matched pose [m]")
@@ -115,6 +117,14 @@ class SlamConfig:
                                "particle's motion sample")
     match_gate: float = _num(0.0, 0.0, 100.0, "distrust a match farther from the noise-free motion prediction than "
                              "this many std-devs of the motion model (match_prior: motion); 0 = off")
+    track_scans: bool = field(default=False, metadata={
+        "doc": "proposal: scan_match: between updates, match each scan against the best particle's map (no map "
+               "write, no resampling): map->odom and trajectory_scans follow the scans, not the raw odometry"})
+    track_search: builtins.str = _choice("refine", ("refine", "search"),
+                                         "track_scans: refine: ICP from the odometry's prediction only; search: "
+                                         "the whole matcher (window round the prediction, then ICP)")
+    track_beams: int = _num(60, 4, 10000, "track_scans: match with at most this many returns, evenly spread (one "
+                            "map: more end points cost little and sharpen the pose)")
     # Update gating (improved mode); zeros process every scan as the assignment does
     linear_update: float = _num(0.0, 0.0, 100.0, "process a scan after this much travel [m]")
     angular_update: float = _num(0.0, 0.0, 2 * math.pi, "... or this much rotation [rad]")
@@ -129,6 +139,8 @@ class SlamConfig:
         for name in ("match_gate", "match_window"):
             if getattr(self, name) > 0 and self.match_prior != "motion":
                 raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
+        if self.track_scans and self.proposal != "scan_match":
+            raise ConfigError("track_scans needs proposal=scan_match (it uses the scan matcher)")
         if self.match_spread == "match" and self.match_refine != "icp":
             raise ConfigError("match_spread=match needs match_refine=icp (the hill climb has no covariance)")
         for name in ("map_width", "map_height"):

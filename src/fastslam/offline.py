@@ -10,10 +10,11 @@ slam.py node, and writes DIR/map.pgm + map.yaml (map_server format), map.png,
 stats.json, the effective config.yaml and three trajectories (header stamps;
 `t x y theta`, or TUM's `t x y z qx qy qz qw` with --format tum):
 trajectory.txt, the final best particle, one pose per processed scan;
-trajectory_scans.txt, the same path at every scan the filter saw, the odometry since
-the last processed scan composed onto it in between; live_poses.txt, one pose per
+trajectory_scans.txt, the same path at every scan the filter saw, the motion since
+the last processed scan composed onto it in between (the odometry's, or with
+track_scans the scan matcher's against the best map); live_poses.txt, one pose per
 scan as map->odom gave it during the run: the best particle at the last processed
-scan, composed with the odometry since.
+scan, moved since by that same motion (FastSlam.live_pose, as the node publishes it).
 
 With a reference, the bag's /ground_truth (nav_msgs/Odometry, as the simulator records
 it) or ``--reference FILE`` (``t x y theta`` or TUM lines), stats.json gets the ATE and
@@ -41,7 +42,7 @@ from fastslam.eval.trajectory import align_2d, apply_alignment, match_by_time, s
 from fastslam.filter.frontend import Dropped, Frontend, drop_key
 from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.slam import FastSlam
-from fastslam.geometry import compose, inverse, relative
+from fastslam.geometry import compose, relative
 from fastslam.io.bag_reader import REFERENCE_TOPIC, BagData, read_bag
 from fastslam.io.map_files import save_map
 from fastslam.io.records import BagError, OdomRecord, ScanRecord
@@ -87,19 +88,19 @@ class OfflineResult:
 
     def scan_trajectory(self) -> NDArray[np.float64]:
         """(S, 4) rows t, x, y, theta: the final best particle's path at every scan of the
-        filter's last life; between processed scans, the odometry since the last one
-        composed onto its pose."""
+        filter's last life; between processed scans, the live pose's motion since the
+        last one (odometry, or tracked with track_scans) composed onto its pose."""
         rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
         rows = rows[rows[:, 8] == rows[-1, 8]] if len(rows) else rows
         if not len(rows):
             return np.zeros((0, 4))
-        t, odom = rows[:, 0], rows[:, 1:4]
+        t, live = rows[:, 0], rows[:, 4:7]
         k = rows[:, 7].astype(np.intp)
         done = rows[:, 9] > 0
         traj = self.slam.trajectory()
         at_update = np.empty((len(traj), 3))
-        at_update[k[done]] = odom[done]          # odometry of each processed scan
-        poses = compose(traj[k, 1:], relative(at_update[k], odom))
+        at_update[k[done]] = live[done]          # the live pose at each processed scan
+        poses = compose(traj[k, 1:], relative(at_update[k], live))
         poses[done] = traj[k[done], 1:]          # exactly, not through a zero motion
         return np.concatenate([t[:, None], poses], axis=1)
 
@@ -118,7 +119,6 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
     front = Frontend(slam)
     result = OfflineResult(slam=slam)
     mount = (data.mount.x, data.mount.y, data.mount.yaw)
-    map_to_odom = np.zeros(3)
     start = time.perf_counter()
     bar = tqdm(total=len(data.scans), unit="scan", disable=not progress, file=sys.stderr, dynamic_ncols=True,
                mininterval=0.5)
@@ -140,8 +140,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
             if info.processed:
                 result.updates += 1
                 result.update_ms.append(1000.0 * info.seconds)
-                map_to_odom = compose(slam.poses[slam.best], inverse(odom))
-            live = slam.poses[slam.best] if info.processed else compose(map_to_odom, odom)
+            live = slam.live_pose
             result.scan_rows.append([rec.t, *odom.tolist(), *live.tolist(), slam.updates - 1, front.resets,
                                      float(info.processed)])
         except Dropped as err:
@@ -173,13 +172,14 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     write_trajectory(out / "trajectory.txt", traj[:, 0], traj[:, 1:], fmt=fmt,
                      comment="final best particle, one pose per processed scan")
     every = result.scan_trajectory()
+    since = "the scans' matches against the best map" if cfg.track_scans else "the odometry"
     write_trajectory(out / "trajectory_scans.txt", every[:, 0], every[:, 1:], fmt=fmt,
                      comment="final best particle at every scan: its pose at the last processed scan "
-                             "composed with the odometry since")
+                             f"composed with the motion since ({since})")
     live = result.live_poses()
     write_trajectory(out / "live_poses.txt", live[:, 0], live[:, 1:], fmt=fmt,
                      comment="live map->odom composed with the odometry, one pose per scan: the best "
-                             "particle at the last processed scan composed with the odometry since")
+                             f"particle at the last processed scan moved since by {since}")
     paths = {"estimate": (traj[:, 1:3], ESTIMATE_RGB)}
     if result.reference is not None:
         result.accuracy = _accuracy(out, result.reference, traj)

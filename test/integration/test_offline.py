@@ -89,7 +89,8 @@ def test_every_scan_pose_is_the_processed_pose_plus_odometry(tmp_path):
     bag = _sim_bag(tmp_path, 20.0)
     data = read_bag(bag)
     cfg = SlamConfig.from_yaml("config/real.yaml", {"seed": 1, "particles": 5, "linear_update": 0.2,
-                                                    "angular_update": 0.3, "map_width": 10, "map_height": 10})
+                                                    "angular_update": 0.3, "map_width": 10, "map_height": 10,
+                                                    "track_scans": False})
     result = offline.run_bag(data, cfg)
     every, traj = result.scan_trajectory(), result.slam.trajectory()
     assert len(every) == len(data.scans) and 0 < len(traj) < len(every) / 2
@@ -104,6 +105,25 @@ def test_every_scan_pose_is_the_processed_pose_plus_odometry(tmp_path):
     live = result.live_poses()
     np.testing.assert_array_equal(live[0], every[0])
     assert not np.allclose(live[:, 1:], every[:, 1:], atol=1e-6)  # not the same estimate (hindsight vs live)
+
+
+def test_with_tracking_every_scan_pose_moves_as_the_tracked_live_pose(tmp_path):
+    bag = _sim_bag(tmp_path, 20.0)
+    data = read_bag(bag)
+    cfg = SlamConfig.from_yaml("config/real.yaml", {"seed": 1, "particles": 5, "linear_update": 0.2,
+                                                    "angular_update": 0.3, "map_width": 10, "map_height": 10})
+    assert cfg.track_scans
+    result = offline.run_bag(data, cfg)
+    every, traj, live = result.scan_trajectory(), result.slam.trajectory(), result.live_poses()
+    at = np.searchsorted(every[:, 0], traj[:, 0])
+    np.testing.assert_array_equal(every[at], traj)          # processed scans: the trajectory itself
+    gap = np.setdiff1d(np.arange(1, len(every)), at)
+    # between processed scans: the live pose's motion (the matcher's), not the odometry's
+    np.testing.assert_allclose(relative(every[gap - 1, 1:], every[gap, 1:]),
+                               relative(live[gap - 1, 1:], live[gap, 1:]), rtol=0, atol=1e-9)
+    odom = _odom_at(data, every[:, 0])
+    step = relative(live[gap - 1, 1:], live[gap, 1:]) - relative(odom[gap - 1], odom[gap])
+    assert np.abs(step[:, :2]).max() > 1e-3                 # the matches moved some of them
 
 
 def test_tum_format(tmp_path):

@@ -8,7 +8,7 @@ proposal after the motion, likelihood log-weights, resampling only when Neff is 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -23,8 +23,8 @@ from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_p
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
 from fastslam.filter.tiles import TileMaps
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
-from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
-from fastslam.match import Match, MatchParams, match_poses
+from fastslam.geometry import cholesky3, circular_mean, compose, relative, transform_points, wrap_angle
+from fastslam.match import Match, MatchParams, match_poses, refine_poses
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -33,6 +33,8 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 # Likelihood weights need no expected ranges, so the map update traces each beam only
 # about as far as it reaches, in this many groups of beams of similar length.
 TRIM_GROUPS = 4
+# track_scans: a robot that moved less than this since the last match is not matched again
+TRACK_STILL = (0.01, 0.01)  # [m], [rad]
 
 
 @dataclass(frozen=True)
@@ -83,11 +85,17 @@ class FastSlam:
         self._motion_std = np.zeros(3)               # and its spread (match_prior: motion)
         self._stamp = -np.inf
         self.history = History()
+        # The pose map->odom gives at the last scan seen: the best particle at an update,
+        # moved by odometry (and, track_scans, the scan matcher) at the scans between.
+        self.live_pose = np.zeros(3)
+        self._live_odom: NDArray[np.float64] | None = None    # odometry at that scan
+        self._match_odom: NDArray[np.float64] | None = None   # ... at its last match
 
     def rebase_odometry(self, odom: NDArray[np.float64]) -> None:
         """Takes odom as the new reference without moving the particles (after a jump)."""
         if self._odom is not None:
             self._odom = np.asarray(odom, dtype=np.float64)
+            self._live_odom = self._match_odom = self._odom
 
     @property
     def weights(self) -> NDArray[np.float64]:
@@ -98,9 +106,11 @@ class FastSlam:
         """One FastSLAM update with the odometry pose (3,) at the scan's time."""
         odom = np.asarray(odom, dtype=np.float64)
         first = self._odom is None
-        if not first and not self.due(odom, scan.stamp):
-            return StepInfo(processed=False, neff=neff(self.weights), best=self.best)
         start = time.perf_counter()
+        if not first and not self.due(odom, scan.stamp):
+            self._track(odom, scan)
+            return StepInfo(processed=False, neff=neff(self.weights), best=self.best,
+                            seconds=time.perf_counter() - start)
         beams = select_beams(scan, self.cfg)
         if first:
             self._anchor(odom)
@@ -118,6 +128,8 @@ class FastSlam:
         resampled, parent = self._resample(w, n_eff)            # 4. low-variance resampling
         self.history.append(scan.stamp, self.poses, parent)
         self.updates += 1
+        self.live_pose = self.poses[self.best].copy()
+        self._live_odom = self._match_odom = odom
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
                         entropy=entropy(w))
@@ -161,6 +173,32 @@ class FastSlam:
             sample_motion_assignment(poses, self._odom, odom, sigmas, self.rng)
         else:
             sample_motion_odometry(poses, self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt), noise, self.rng)
+
+    def _track(self, odom: NDArray[np.float64], scan: Scan) -> None:
+        """A scan between updates: the live pose moved by the odometry since the last
+        scan and (track_scans) matched against the best particle's map, round that
+        prediction, held to the gate like a proposal; no map write, no weights."""
+        cfg = self.cfg
+        assert self._live_odom is not None and self._match_odom is not None
+        predicted = compose(self.live_pose, relative(self._live_odom, odom))
+        self.live_pose, self._live_odom = predicted, odom
+        if not cfg.track_scans:
+            return
+        moved = float(np.hypot(*(odom[:2] - self._match_odom[:2])))
+        if moved < TRACK_STILL[0] and abs(float(wrap_angle(odom[2] - self._match_odom[2]))) < TRACK_STILL[1]:
+            return  # standing: the last match holds
+        std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
+               else odometry_std(self._match_odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
+        self._match_odom = odom
+        one = predicted[None, :]
+        start, params, prior = match_request(cfg, replace(self._match_params, beams=cfg.track_beams), one, one, std)
+        assert prior is not None
+        grid, beams = self.grid.view(self.best), select_beams(scan, cfg)
+        found = (refine_poses(grid, start, beams, params, prior) if cfg.track_search == "refine"
+                 else match_poses(grid, start, beams, params, prior=prior))
+        match = gate_match(cfg, found, one, std)
+        if match.trusted[0]:
+            self.live_pose = match.poses[0]
 
     def _cover_beams(self) -> tuple[bool, bool]:
         """Grows the maps so every particle's beams stay inside; or reports clipping."""

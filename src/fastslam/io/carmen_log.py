@@ -92,6 +92,7 @@ class CarmenLog:
     scans: list[LaserRecord]
     odometry: list[OdomLine]
     params: dict[str, str]
+    skipped: list[str] = field(default_factory=list)  # ODOM lines left out, each with its line and why
 
     @property
     def front_laser_offset(self) -> float:
@@ -128,11 +129,15 @@ def flaser_geometry(n: int) -> tuple[float, float]:
 MAX_STAMP = 2.0**32  # [s] ROS 1 time holds seconds in 32 bits
 
 
+class BadStamp(ValueError):
+    """A timestamp no ROS 1 time can hold."""
+
+
 def _stamp(value: str) -> float:
     """A timestamp field [s]: finite, not negative, one ROS 1 time can hold."""
     t = float(value)
     if not 0.0 <= t < MAX_STAMP:
-        raise ValueError(f"timestamp {value} is not in [0, 2^32) s")
+        raise BadStamp(f"timestamp {value} is not in [0, 2^32) s")
     return t
 
 
@@ -188,7 +193,8 @@ def parse_odom(tok: list[str]) -> OdomLine:
 
 def iter_log(lines: Iterator[str] | IO[str], *, max_range: float | None = None
              ) -> Iterator[LaserRecord | OdomLine | tuple[str, str]]:
-    """Parse lines lazily; yields LaserRecord, OdomLine or ("PARAM", "name value").
+    """Parse lines lazily; yields LaserRecord, OdomLine, ("PARAM", "name value") or
+    ("SKIPPED", why) for an ODOM line with a timestamp no ROS time holds.
 
     Raises:
         CarmenError: a known message type with missing or non-numeric fields.
@@ -205,7 +211,10 @@ def iter_log(lines: Iterator[str] | IO[str], *, max_range: float | None = None
                 elif tok[0] == "ROBOTLASER1":
                     yield parse_robotlaser1(tok, max_range=max_range)
                 elif tok[0] == "ODOM":
-                    yield parse_odom(tok)
+                    try:
+                        yield parse_odom(tok)
+                    except BadStamp as err:  # the converter does not need ODOM lines (seattle has one)
+                        yield ("SKIPPED", f"line {number}: ODOM {err}")
                 elif tok[0] == "PARAM" and len(tok) >= 3:
                     yield ("PARAM", f"{tok[1]} {tok[2]}")
             except (ValueError, IndexError) as err:
@@ -226,6 +235,7 @@ def read_log(path: str | os.PathLike[str], *, max_range: float | None = None,
     scans: list[LaserRecord] = []
     odometry: list[OdomLine] = []
     params: dict[str, str] = {}
+    skipped: list[str] = []
     with _open_text(Path(path)) as f:
         for item in iter_log(f, max_range=max_range):
             if isinstance(item, LaserRecord):
@@ -234,7 +244,9 @@ def read_log(path: str | os.PathLike[str], *, max_range: float | None = None,
                     break
             elif isinstance(item, OdomLine):
                 odometry.append(item)
+            elif item[0] == "SKIPPED":
+                skipped.append(item[1])
             else:
                 name, value = item[1].split(" ", 1)
                 params[name] = value
-    return CarmenLog(scans=scans, odometry=odometry, params=params)
+    return CarmenLog(scans=scans, odometry=odometry, params=params, skipped=skipped)

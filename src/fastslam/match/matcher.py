@@ -60,13 +60,14 @@ class MatchParams:
     covariance: bool = False     # return the ICP's covariance (refine "icp" only)
     free_space: bool = False     # end points in known free space count against a candidate, and
     max_free: float = 1.0        # a match with a larger share of them is not trusted
+    icp_beams: int = 0           # ICP (refine "icp") on at most this many returns; 0: beams
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
-                   max_free=cfg.match_max_free)
+                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams)
 
 
 @dataclass(frozen=True)
@@ -113,12 +114,15 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
         spread = np.array([params.xy_range, params.xy_range, params.theta_range]) / 2
     else:
         centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
-    normals = surface_normals(beams, sel) if params.refine == "icp" else None
+    icp_points = None   # (end points, surface normals) for ICP: its own, more, returns if asked
+    if params.refine == "icp":
+        fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
+        icp_points = (end_points(beams, fine), surface_normals(beams, fine))
     # Particles in chunks whose pooled maps stay within MATCH_BYTES: a window across a
     # large building would otherwise take tens of MB.
     size = max(1, MATCH_BYTES // ((x1 - x0) * (y1 - y0) * 5 // 16))     # pooled maps (half, quarter) per particle
     found = [_match_some(grid.view(a, min(n, a + size)), poses[a:a + size], centre[a:a + size], spread, local,
-                         normals, (x0, y0, x1, y1), k0, ka, dth, params)
+                         icp_points, (x0, y0, x1, y1), k0, ka, dth, params)
              for a in range(0, n, size)]
     pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
     cov = None if found[0][2] is None else np.concatenate([f[2] for f in found])
@@ -126,7 +130,8 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
 
 
 def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.float64], spread: NDArray[np.float64],
-                local: NDArray[np.float64], normals: NDArray[np.float64] | None, box: tuple[int, int, int, int],
+                local: NDArray[np.float64], icp_points: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+                box: tuple[int, int, int, int],
                 k0: int, ka: int, dth: float, params: MatchParams
                 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.float64]]:
     """match_poses for the particles of grid (a view): (poses, trusted, covariance, score)."""
@@ -150,8 +155,8 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     pose = pick(scores, pose, turns, 1, res, centre, spread, m)
     # 3. finer than a cell
     cov = None
-    if normals is not None:
-        pose, info = icp(grid, pose, local, normals, centre, spread)
+    if icp_points is not None:
+        pose, info = icp(grid, pose, icp_points[0], icp_points[1], centre, spread)
         if params.covariance:
             cov = inv3(info)
     else:
@@ -177,6 +182,63 @@ def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tup
         b = min(n, a + maps)
         half[a:b], quarter[a:b] = pool(grid.crop(y0, y1, x0, x1, a, b))
     return half, quarter
+
+
+def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
+                 prior: tuple[NDArray[np.float64], NDArray[np.float64]]) -> Match:
+    """A short search, then the last stage of match_poses (ICP), from poses (N, 3) within
+    a few cells of the match: tracking a pose from scan to scan between updates, where
+    the odometry of one scan errs by centimetres but its heading by a degree or two
+    (CSAIL), which moves far end points beyond ICP's reach.
+
+    The search turns each pose by up to params.theta_range in steps that move the far
+    end points two cells, and keeps the heading with the most end points within one
+    cell of an occupied one (the smallest turn among equals). Trusted as match_poses
+    trusts: min_score of the end points within one cell of an occupied one, and
+    (free_space) at most max_free of them on known free cells with none occupied near.
+    prior: (centre (N, 3), std-devs (3,)) as for match_poses.
+    """
+    n = len(poses)
+    if np.count_nonzero(beams.hit) < MIN_BEAMS:
+        return Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
+    coarse = end_points(beams, spread_returns(beams, params.beams))
+    far = float(np.percentile(np.hypot(coarse[:, 0], coarse[:, 1]), 90))
+    step = 2 * grid.resolution / max(far, 2 * grid.resolution)
+    turns = np.arange(-1, 2) * step if params.theta_range <= 0 else \
+        np.arange(-math.ceil(params.theta_range / step), math.ceil(params.theta_range / step) + 1) * step
+    cand = np.repeat(poses[:, None, :], len(turns), axis=1)
+    cand[..., 2] += turns
+    on_wall, _ = neighbourhood_flags(grid, cand, coarse)                 # (N, A, M)
+    best = np.argmax(on_wall.sum(axis=2) - 1e-3 * np.abs(turns) / step, axis=1)
+    start = cand[np.arange(n), best]
+    sel = spread_returns(beams, max(params.beams, params.icp_beams))
+    local = end_points(beams, sel)
+    centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
+    pose, info = icp(grid, start, local, surface_normals(beams, sel), centre, spread)
+    occupied, free = neighbourhood_flags(grid, pose, local)
+    score = occupied.mean(axis=1)
+    trusted = score >= params.min_score
+    if params.free_space:
+        trusted &= free.mean(axis=1) <= params.max_free
+    return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score)
+
+
+def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64]
+                        ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """(N, ..., M) each, for the end points local (M, 2) seen from the poses (N, ..., 3)
+    on map n: whether an occupied cell lies within one cell of the end point's, and
+    whether its cell is known free with none occupied near (outside the grid: neither)."""
+    h, w = grid.shape
+    x, y = transform_points(pose, local)
+    ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
+    iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
+    inside = (ix >= 1) & (ix < w - 1) & (iy >= 1) & (iy < h - 1)
+    maps = np.arange(len(pose)).reshape((-1,) + (1,) * (x.ndim - 1))
+    d = np.array([-1, 0, 1])
+    cells = grid.values_around(maps, np.clip(iy, 1, h - 2), np.clip(ix, 1, w - 2), np.repeat(d, 3), np.tile(d, 3))
+    near = (cells > 0).any(axis=0)                                     # the 3 x 3 cells, first axis
+    free = inside & ~near & (cells[4] < 0)                             # the end point's own cell
+    return inside & near, free
 
 
 def _flags_at(pose: NDArray[np.float64], local: NDArray[np.float64], half: NDArray[np.int8],

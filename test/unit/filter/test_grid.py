@@ -153,3 +153,16 @@ def test_probability_occupancy_and_known_cells_of_a_particle():
     assert grid.occupancy(1).dtype == np.int8
     np.testing.assert_array_equal(grid.occupancy(0), [[51, -1, -1]])   # one step: p = 0.5098
     np.testing.assert_array_equal(grid.known_cells(), [1, 2])
+
+
+def test_a_view_shares_some_particles_cells():
+    grid = GridMaps(3, (4, 5), RES, (1.0, -2.0))
+    grid.logodds[1, 2, 3] = 7
+    one = grid.view(1)
+    assert one.logodds.shape == (1, 4, 5) and one.shape == (4, 5) and one.particles == 1
+    assert one.logodds[0, 2, 3] == 7 and np.shares_memory(one.logodds, grid.logodds)
+    assert one.resolution == RES and tuple(one.origin) == (1.0, -2.0)
+    grid.logodds[1, 0, 0] = -3                     # later writes show through
+    assert one.logodds[0, 0, 0] == -3
+    two = grid.view(1, 3)
+    assert two.particles == 2 and two.values([0, 1], [2, 2], [3, 3]).tolist() == [7, 0]

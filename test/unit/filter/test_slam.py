@@ -194,3 +194,77 @@ def test_core_survives_random_input(steps, motion_model):
         assert np.all(np.isfinite(w)) and abs(w.sum() - 1.0) < 1e-9
         assert np.all(np.abs(slam.poses[:, 2]) <= np.pi)
     assert slam.trajectory().shape == (len(steps), 4)
+
+
+def test_the_live_pose_between_updates_is_the_best_pose_moved_by_odometry(room_scan):
+    slam = _filter(linear_update=0.5, angular_update=0.5, toggle_noise=0)
+    slam.step(np.zeros(3), room_scan(np.zeros(3), ANGLES_4, 0.0))
+    np.testing.assert_allclose(slam.live_pose, slam.poses[slam.best])
+    slam.live_pose = np.array([1.0, 2.0, np.pi / 2])        # as if the map frame were turned
+    info = slam.step(np.array([0.15, 0.0, 0.0]), room_scan(np.array([0.15, 0.0, 0.0]), ANGLES_4, 0.2))
+    assert not info.processed
+    np.testing.assert_allclose(slam.live_pose, [1.0, 2.15, np.pi / 2], atol=1e-12)  # 0.15 m ahead = +y
+
+
+def _tracking(**kw) -> FastSlam:
+    """The improved mode in the pillar room, exact odometry up to the last scan, gating
+    0.5 m: scans at -0.5 and 0 m are updates, the map is theirs."""
+    base = dict(particles=3, seed=0, toggle_noise=0, motion_model="odometry", weight_model="likelihood",
+                proposal="scan_match", match_prior="motion", match_window=3.0, match_gate=3.5,
+                match_good_score=1.0, match_refine="icp", match_min_known=20, match_beams=90,
+                linear_update=0.5, angular_update=0.5, track_scans=True, track_search="search")
+    slam = FastSlam(SlamConfig(**{**base, **kw}))
+    return slam
+
+
+def _map_two_scans(slam: FastSlam, room_scan) -> None:
+    for i, x in enumerate((-0.5, 0.0)):
+        pose = np.array([x, 0.0, 0.0])
+        assert slam.step(pose, room_scan(pose, ANGLES, 0.2 * i)).processed
+
+
+@pytest.mark.parametrize("search", ["search", "refine"])
+def test_tracking_matches_the_scans_between_updates(room_scan, search):
+    slam = _tracking(track_search=search)
+    _map_two_scans(slam, room_scan)
+    start = slam.live_pose.copy()
+    truth = np.array([0.1, 0.0, 0.0])
+    # odometry reads 4 cm too far (with 0.05 m floors: 0.8 std-devs of the motion model)
+    info = slam.step(np.array([0.14, 0.0, 0.0]), room_scan(truth, ANGLES, 0.4))
+    assert not info.processed
+    moved = relative(start, slam.live_pose)
+    assert abs(moved[0] - 0.1) < 0.01 and abs(moved[1]) < 0.01 and abs(moved[2]) < 0.005
+    # untracked, the same scan gives the odometry
+    plain = _tracking(track_scans=False)
+    _map_two_scans(plain, room_scan)
+    plain.step(np.array([0.14, 0.0, 0.0]), room_scan(truth, ANGLES, 0.4))
+    assert relative(plain.poses[plain.best], plain.live_pose)[0] == pytest.approx(0.14)
+
+
+def test_tracking_keeps_the_motion_prediction_when_the_match_is_gated_or_blind(room_scan):
+    # gate 0.5 std-devs: the match 4 cm (0.8 std-devs) from the prediction is not trusted
+    slam = _tracking(match_gate=0.5)
+    _map_two_scans(slam, room_scan)
+    predicted = compose(slam.live_pose, [0.14, 0.0, 0.0])
+    slam.step(np.array([0.14, 0.0, 0.0]), room_scan(np.array([0.1, 0.0, 0.0]), ANGLES, 0.4))
+    np.testing.assert_allclose(slam.live_pose, predicted, atol=1e-12)
+    # no returns: nothing to match, the prediction again
+    blind = Scan(ranges=np.full(360, np.inf), angles=ANGLES, range_min=0.12, range_max=3.5, stamp=0.6)
+    slam.step(np.array([0.2, 0.0, 0.0]), blind)
+    np.testing.assert_allclose(slam.live_pose, compose(predicted, [0.06, 0.0, 0.0]), atol=1e-12)
+
+
+def test_tracking_leaves_particles_maps_and_weights_alone(room_scan):
+    slam = _tracking()
+    _map_two_scans(slam, room_scan)
+    def maps_of(s: FastSlam) -> np.ndarray:
+        return np.stack([s.grid.particle_map(i) for i in range(s.grid.particles)])
+
+    poses, maps, log_w = slam.poses.copy(), maps_of(slam), slam.log_w.copy()
+    slam.step(np.array([0.14, 0.0, 0.0]), room_scan(np.array([0.1, 0.0, 0.0]), ANGLES, 0.4))
+    np.testing.assert_array_equal(slam.poses, poses)
+    np.testing.assert_array_equal(maps_of(slam), maps)
+    np.testing.assert_array_equal(slam.log_w, log_w)
+    # the next update starts from the particles' own poses: the odometry since the last update
+    assert slam.step(np.array([0.5, 0.0, 0.0]), room_scan(np.array([0.5, 0.0, 0.0]), ANGLES, 0.6)).processed
+    np.testing.assert_allclose(slam.live_pose, slam.poses[slam.best])

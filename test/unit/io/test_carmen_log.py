@@ -106,3 +106,13 @@ def test_unknown_and_short_lines_are_skipped_or_named(tmp_path):
     path.write_text("SYNC 1 2\nGPS whatever\n")
     log = read_log(path)
     assert log.scans == [] and log.odometry == [] and log.front_laser_offset == 0.0
+
+
+def test_an_odom_line_with_a_negative_stamp_is_left_out_and_named(tmp_path):
+    # seattle's log has one: ODOM ... -1.63023 pippo -1.63023 between good ones
+    path = tmp_path / "neg.log"
+    path.write_text("ODOM 1 2 0.5 0 0 0 10.0 h 10.0\nODOM 1 2 0.5 0 0 0 -1.6 h -1.6\n"
+                    "ODOM 1.5 2 0.5 0 0 0 10.2 h 10.2\n")
+    log = read_log(path)
+    assert [o.t for o in log.odometry] == [10.0, 10.2]
+    assert log.skipped == ["line 2: ODOM timestamp -1.6 is not in [0, 2^32) s"]

@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from fastslam.config import SlamConfig
+from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
-from fastslam.match import MatchParams, match_poses
+from fastslam.match import MatchParams, match_poses, refine_poses
+from fastslam.match.matcher import neighbourhood_flags
 
 ANGLES = np.radians(np.arange(360.0))
 
@@ -103,3 +105,74 @@ def test_params_from_the_configuration():
     assert MatchParams.from_config(cfg) == MatchParams(beams=30, xy_range=0.4, theta_range=0.2, min_score=0.7,
                                                        min_known=5, refine="icp", covariance=True)
     assert MatchParams.from_config(SlamConfig()) == MatchParams()        # the defaults agree
+
+
+def test_neighbourhood_flags_by_hand():
+    grid = GridMaps(1, (10, 10), 0.1, (0.0, 0.0))
+    grid.logodds[0, 5, 5] = 20                     # one wall cell
+    grid.logodds[0, 5, 7] = -10                    # known free, two cells from it
+    local = np.array([[0.55, 0.55],                # on the wall cell
+                      [0.65, 0.45],                # cell (6, 4): diagonal neighbour
+                      [0.75, 0.55],                # cell (7, 5): free, no wall within one cell
+                      [0.85, 0.85],                # cell (8, 8): unknown
+                      [0.05, 0.05]])               # cell (0, 0): the edge, neither
+    occupied, free = neighbourhood_flags(grid, np.zeros((1, 3)), local)
+    assert occupied.tolist() == [[True, True, False, False, False]]
+    assert free.tolist() == [[False, False, True, False, False]]
+    # seen from (0.1, 0, 0) every point moves one cell along x
+    occupied, free = neighbourhood_flags(grid, np.array([[0.1, 0.0, 0.0]]), local)
+    assert occupied.tolist() == [[True, False, False, False, False]]
+    assert free.tolist() == [[False, False, False, False, False]]
+
+
+def test_refine_poses_pulls_a_pose_a_few_cm_off_onto_the_map(mapped_room, scan360):
+    slam, _ = mapped_room()
+    cfg = slam.cfg.replace(match_refine="icp")
+    truth = np.array([0.1, -0.1, 0.2])
+    start = truth + np.array([[0.03, -0.02, 0.01]])
+    match = refine_poses(slam.grid.view(0), start, select_beams(scan360(truth), cfg), MatchParams.from_config(cfg),
+                         (start, np.array([0.05, 0.05, 0.05])))
+    assert match.trusted.tolist() == [True] and match.score is not None and match.score[0] > 0.9
+    assert np.hypot(*(match.poses[0, :2] - truth[:2])) < 0.01     # from 3.6 cm off
+    assert abs(match.poses[0, 2] - truth[2]) < 0.005
+
+
+def test_refine_poses_trusts_nothing_on_an_empty_map(scan360):
+    cfg = SlamConfig(particles=1, seed=0, proposal="scan_match", match_refine="icp")
+    slam = FastSlam(cfg)
+    start = np.array([[0.1, 0.0, 0.0]])
+    match = refine_poses(slam.grid, start, select_beams(scan360(np.zeros(3)), cfg), MatchParams.from_config(cfg),
+                         (start, np.full(3, 0.05)))
+    assert not match.trusted.any() and match.score is not None and match.score[0] == 0.0
+
+
+def test_icp_on_more_end_points_than_the_search(mapped_room, scan360):
+    slam, _ = mapped_room()
+    truth = np.array([0.2, -0.3, 0.4])
+    start = np.tile(truth + [0.03, -0.02, 0.02], (3, 1))
+    covs = []
+    for icp_beams in (0, 360):                      # 0: the search's 60 end points
+        cfg = slam.cfg.replace(match_refine="icp", match_spread="match", match_beams=60, match_icp_beams=icp_beams)
+        params = MatchParams.from_config(cfg)
+        assert params.icp_beams == icp_beams
+        match = match_poses(slam.grid, start, select_beams(scan360(truth), cfg), params,
+                            prior=(start, np.full(3, 0.5)))
+        assert match.trusted.all() and np.abs(match.poses[:, :2] - truth[:2]).max() < 0.015
+        assert match.covariance is not None
+        covs.append(match.covariance[:, 0, 0])
+    # six times the end points (the weak prior aside): about a sixth of the variance
+    assert np.all(covs[1] < covs[0] / 4) and np.all(covs[1] > covs[0] / 8)
+
+
+def test_refine_poses_finds_a_heading_beyond_icps_reach(mapped_room, scan360):
+    # 17 degrees off: the room's far walls (2.5 m) move 75 cm, far beyond ICP's 2-cell kernel
+    slam, _ = mapped_room()
+    truth = np.array([0.1, -0.1, 0.2])
+    start = truth + np.array([[0.02, 0.0, 0.3]])
+    errors = []
+    for theta_range in (0.5, 0.0):                  # 0: three headings one step apart
+        cfg = slam.cfg.replace(match_refine="icp", match_theta_range=theta_range)
+        match = refine_poses(slam.grid.view(0), start, select_beams(scan360(truth), cfg),
+                             MatchParams.from_config(cfg), (start, np.array([0.05, 0.05, 0.2])))
+        errors.append(abs(match.poses[0, 2] - truth[2]))
+    assert errors[0] < 0.002 and errors[1] > 0.1   # measured 0.0003 and 0.19 rad

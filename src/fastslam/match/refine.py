@@ -116,6 +116,8 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
     p_tt = 1.0 / spread[2] ** 2
     has_normal = np.any(normals != 0, axis=1)
     pose = pose.copy()
+    particle = np.broadcast_to(np.arange(n)[:, None], (n, len(local)))
+    cell: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None     # the kernel's centre cells so far
     for _ in range(ICP_ITERATIONS):
         c, s = cos_sin(pose[:, 2, None])
         rx = c * local[:, 0] - s * local[:, 1]                         # (N, M) end point - position
@@ -126,7 +128,13 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
         # cells of the grid were never seen: nothing occupied to find there)
         iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
         iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
-        grid.values_around(np.arange(n)[:, None], iv, iu, oy, ox, out=kernel)  # kernel first: sums add whole slabs
+        if cell is None:
+            grid.values_around(particle, iv, iu, oy, ox, out=kernel)   # kernel first: sums add whole slabs
+        else:   # a later step moves few end points to another cell: only theirs are read again
+            moved = (iu != cell[1]) | (iv != cell[0])
+            if moved.any():
+                kernel[:, moved] = grid.values_around(particle[moved], iv[moved], iu[moved], oy, ox)
+        cell = (iv, iu)
         ex = (u - iu - 0.5).astype(np.float32) - dk                    # (K, N, M) end point - centre [cells]
         ey = (v - iv - 0.5).astype(np.float32) - dk
         # The target is the Gaussian-weighted mean of the occupied centres nearby, not

@@ -24,8 +24,9 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
 SPACE_CELLS = 1 << 20     # cells of a space shared by consecutive chunks (see _spaces)
-# The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
-TRIM_CHUNK_ELEMENTS = 1 << 18
+# The trimmed update (likelihood mode) is faster in larger chunks (fewer, longer passes);
+# these keep its work arrays at a few MB (the Intel log in 66 MB, docs/benchmarks.md).
+TRIM_CHUNK_ELEMENTS = 3 << 16
 
 
 @dataclass

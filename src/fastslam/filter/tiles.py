@@ -36,7 +36,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import ArrayLike, NDArray
 
 
-TILE = (32, 32)        # rows, columns of a tile (powers of two); see docs/benchmarks.md, "Maps"
+TILE = (64, 64)        # rows, columns of a tile (powers of two); see docs/benchmarks.md, "Maps"
 # A box the beams visit densely is copied (TilePatch) when its cells are at most this
 # many times the cells traced; else each index is translated to its tile (TileLookup).
 PATCH_FACTOR = 4.0

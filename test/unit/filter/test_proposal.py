@@ -79,12 +79,13 @@ def test_free_space_distrusts_a_match_that_puts_end_points_in_the_room(room_scan
 
 def test_likelihood_free_costs_end_points_in_known_free_space(room_scan):
     slam = _mapped(room_scan)
-    slam.grid.logodds[1][slam.grid.logodds[1] < 0] = 0   # particle 1 forgot its free space, kept its walls
+    iy, ix = np.nonzero(slam.grid.particle_map(1) < 0)
+    slam.grid.put(1, iy, ix, 0)                       # particle 1 forgot its free space, kept its walls
     scan = room_scan(np.array([-0.6, 0.0, 0.0]), ANGLES)  # seen 0.6 m from where both particles are
     weights = []
     for free in (0.0, 4.5):
         s = FastSlam(slam.cfg.replace(likelihood_free=free))
-        s.grid.logodds, s.grid.origin, s.poses = slam.grid.logodds.copy(), slam.grid.origin, slam.poses.copy()
+        s.grid, s.poses = slam.grid.copy(), slam.poses.copy()
         s._observe(select_beams(scan, s.cfg))
         weights.append(s.log_w.copy())
     assert weights[0][0] == weights[0][1]                 # the same walls: the same weight

@@ -108,9 +108,10 @@ class Faults(ClockedCase):
     def test_growth_past_max_map_extent_is_refused_once_and_mapping_goes_on(self):
         self.ready()
         errors = len(self.logged("map growth refused", Log.ERROR))
-        # and a second node whose memory_limit_mb leaves its two maps 0.55 MB (128 MB and one
-        # scan's work arrays are the node's own): refused by memory at about 36 m
-        memory = self.spawn("mem_slam", "_memory_limit_mb:=129.3", "_save_on_exit:=false")
+        # and a second node whose memory_limit_mb leaves its two maps 0.085 MB (128 MB and one
+        # scan's work arrays are the node's own): its tiles along the corridor hold 74 kB when
+        # the maps grow at 25 m and 99 kB at 42 m, refused by memory there
+        memory = self.spawn("mem_slam", "_memory_limit_mb:=128.835", "_save_on_exit:=false")
         self.wait_until_updates("mem_slam")
         start = self.x
         for _ in range(100):                      # 50 m along x, 0.5 m a step at 2.5 m/s
@@ -128,7 +129,7 @@ class Faults(ClockedCase):
         out = self.stop(memory, "mem_slam")
         refused = [line for line in out.splitlines() if "map growth refused" in line]
         self.assertEqual(len(refused), 1, out[-3000:])
-        self.assertIn("more than the memory limit leaves them (0.5 MB; memory_limit_mb); mapping goes on", refused[0])
+        self.assertIn("more than the memory limit leaves them (0.1 MB; memory_limit_mb); mapping goes on", refused[0])
         for _ in range(100):                      # and back
             self.clock.jump(0.2)
             self.step(-0.5)

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import numpy as np
 import rospy
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Path
-from nav_msgs.srv import GetMap
 from std_msgs.msg import Float64, Header
 
 from fastslam.filter.frontend import Frontend
@@ -51,7 +50,6 @@ class MapOutput:
         self.pub_entropy = rospy.Publisher("~entropy", Float64, queue_size=1, latch=True)
         self.pub_debug = [rospy.Publisher(f"~particle_map_{i}", OccupancyGrid, queue_size=1, latch=True)
                           for i in range(cfg.debug_maps)]
-        self.srv_map = rospy.Service("dynamic_map", GetMap, self.on_get_map)
 
     def due(self, stamp: float) -> bool:
         """Whether a scan at stamp [s] publishes the map (every map_update_interval)."""
@@ -106,5 +104,5 @@ class MapOutput:
             for pub, occ in zip(self.pub_debug, debug.maps[1:]):
                 pub.publish(convert.occupancy_msgs(occ, debug.resolution, debug.origin, frame, stamp)[0])
 
-    def on_get_map(self, _req) -> PackedMapResponse:
+    def on_get_map(self, _req) -> PackedMapResponse:  # dynamic_map, advertised by the node
         return PackedMapResponse(map=self._msgs()[0])

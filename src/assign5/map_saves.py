@@ -10,7 +10,7 @@ import threading
 import time
 
 import rospy
-from std_srvs.srv import Trigger, TriggerResponse
+from std_srvs.srv import TriggerResponse
 
 from fastslam.filter.frontend import Reset
 from fastslam.io.map_files import MapSaveError, remove_stale, save_map
@@ -21,7 +21,7 @@ from .stats import Counts
 
 
 class MapSaves:
-    """Saves the best particle's map; serves ~save_map."""
+    """Saves the best particle's map; serves ~save_map (advertised by the node)."""
 
     def __init__(self, cfg: NodeConfig, maps: MapOutput, counts: Counts, lock: threading.RLock,
                  scan_topic: str) -> None:
@@ -31,7 +31,6 @@ class MapSaves:
         self.map_file = map_path(cfg.map_file)
         for stale in remove_stale(self.map_file):
             rospy.loginfo(f"removed what a killed save left: {stale}")
-        self.srv_save = rospy.Service("~save_map", Trigger, self.on_save_map)
 
     def before_reset(self, event: Reset) -> None:
         """The frontend is about to forget the map (under the lock): keep a copy to save."""

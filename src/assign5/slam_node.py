@@ -20,10 +20,12 @@ import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from nav_msgs.srv import GetMap
 from rosgraph_msgs.msg import Clock
 from rospy.numpy_msg import numpy_msg
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
 
 from fastslam.config import SlamConfig
 from fastslam.filter.frontend import Dropped, Frontend, Reset
@@ -71,6 +73,10 @@ class SlamNode:
         self.pub_pose = rospy.Publisher("~pose", PoseWithCovarianceStamped, queue_size=1)
         self.pub_neff = rospy.Publisher("~neff", Float64, queue_size=1)
         self.pub_time = rospy.Publisher("~update_time", Float64, queue_size=1)
+        # the services after every publisher: a client that waited for one may stop the node at
+        # once (faults.test does), and a SIGTERM earlier in here was seen to hang the exit
+        self.srv_map = rospy.Service("dynamic_map", GetMap, self.maps.on_get_map)
+        self.srv_save = rospy.Service("~save_map", Trigger, self.saves.on_save_map)
         self.sub_odom = rospy.Subscriber(cfg.odom_topic, Odometry, self.on_odom, queue_size=50)
         # numpy_msg: ranges arrive as an array, read at once (genpy would make a Python float
         # per beam while holding the interpreter: a scan of a million beams held up tf)

@@ -5,7 +5,8 @@ import sys
 import rospy
 
 from assign5 import params
-from assign5.slam_node import SlamNode, one_malloc_arena
+from assign5.malloc import one_malloc_arena
+from assign5.slam_node import SlamNode
 
 
 def main() -> int:

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fastslam.config import SlamConfig
-from fastslam.filter import raycast
+from fastslam.filter import raycast, trimmed
 from fastslam.filter.budget import Limits
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
@@ -281,7 +281,7 @@ class FastSlam:
                     # end points in known free space with no wall near: the scan contradicts the map there
                     wrong = (dist >= cfg.likelihood_max_dist) & sub.hit & self._in_free_space(sub)
                     log_w = log_w - cfg.likelihood_gain * cfg.likelihood_free * wrong.sum(axis=1)
-            raycast.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
+            trimmed.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
                                    groups=TRIM_GROUPS, free_step=cfg.free_beam_step)
         else:
             d = raycast.observe(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,

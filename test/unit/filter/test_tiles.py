@@ -9,6 +9,7 @@ import pytest
 
 from fastslam.filter import raycast
 from fastslam.filter.grid import GridMaps, LogOddsSteps
+from fastslam.filter.rays import trace
 from fastslam.filter.tiles import TileLookup, TileMaps, TilePatch, TilePool
 
 TILE = (4, 8)   # small tiles: the lattice by hand
@@ -170,7 +171,7 @@ def test_the_ray_tracer_writes_through_either_way_as_into_dense_grids(way, monke
         a = np.tile(angles, (4, 1)) + rng.normal(0, 0.1, (4, len(angles)))
         ranges = rng.uniform(0.3, 2.5, len(angles))
         for maps in (dense, tiled):
-            rays = raycast.trace(maps, origins, a, 2.0)
+            rays = trace(maps, origins, a, 2.0)
             if maps is tiled:
                 assert isinstance(rays.space, way)
             expected = raycast.expected_ranges(maps, rays, 0.1)

@@ -1,0 +1,118 @@
+"""The likelihood mode's grid update: no expected ranges, so beams are traced in groups
+of similar length, each group only as far as its longest beam reaches.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from fastslam.filter.grid import GridMaps, LogOddsSteps
+from fastslam.filter.raycast import apply_update, cells_to_update, free_of
+from fastslam.filter.rays import Lines, beam_lines, flat_inside, range_step, trace_lines
+from fastslam.filter.scan import Beams
+from fastslam.filter.scratch import scratch
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
+
+# The trimmed update (likelihood mode) is faster in larger chunks (fewer, longer passes);
+# these keep its work arrays at a few MB (the Intel log in 66 MB, docs/benchmarks.md).
+TRIM_CHUNK_ELEMENTS = 3 << 16
+
+
+def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,
+                   steps: LogOddsSteps, *, max_range: float, groups: int, free_step: int = 1) -> None:
+    """The grid update of raycast.observe without expected ranges (faster): beams are traced in
+    groups of similar length, each only as far as its longest beam reaches, not to
+    max_range (the cells of a beam's line then depend on its group's length).
+
+    Args:
+        origins: (N, 2) beam origins; angles: (N, M) beam directions, map frame.
+        beams: the M beams (ranges, hits, the range each clears).
+        groups: number of groups of beams of similar length.
+        free_step: only every free_step-th beam (in angle) clears free space; the
+            others only mark the cell of their end point.
+    """
+    ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
+    n_p, m = angles.shape
+    reach = np.where(hit, ranges, free_range)
+    order = np.argsort(reach, kind="stable")
+    order = order[reach[order] > 0]                          # beams that clear nothing are skipped
+    if len(order) == 0:
+        return
+    # Only every free_step-th beam (in angle) is traced; the others only mark their
+    # end cells, computed directly from the end points.
+    marked = np.zeros(0, dtype=np.intp)
+    if free_step > 1:
+        traced = (np.arange(m) % free_step) == 0
+        marked = np.flatnonzero(hit & ~traced)
+        order = order[traced[order]]
+    parts = [p for p in np.array_split(order, min(groups, len(order))) if len(p)]
+    cols = np.concatenate(parts)
+    # each beam traced to its group's length (all groups at once: fewer, small, numpy calls)
+    r = np.concatenate([np.full(len(sel), float(min(reach[sel].max(), max_range)) + grid.resolution)
+                        for sel in parts])
+    # a chunk's work arrays: the cells of its longest group, and the cells it frees (about)
+    longest = max(len(sel) * (int(float(r[i]) / grid.resolution) + 2)
+                  for i, sel in zip(np.cumsum([0] + [len(sel) for sel in parts])[:-1], parts))
+    per_particle = max(longest, int(len(order) * (float(np.mean(reach[order])) / grid.resolution + 2)))
+    per_chunk = max(1, TRIM_CHUNK_ELEMENTS // per_particle)
+    h, w = grid.shape
+    for a in range(0, n_p, per_chunk):
+        b = min(n_p, a + per_chunk)
+        lines = beam_lines(grid, origins[a:b], angles[a:b][:, cols], r)
+        lo, hi = lines.box()
+        marked_cells = np.zeros((b - a, 0, 2), dtype=np.int64)
+        ok = np.zeros((b - a, 0), dtype=bool)
+        if len(marked):
+            a_m = angles[a:b][:, marked]
+            ends = origins[a:b, None, :] + ranges[marked, None] * np.stack([np.cos(a_m), np.sin(a_m)], -1)
+            marked_cells = grid.world_to_cell(ends)                           # (n, K, 2)
+            ok = ((marked_cells[..., 0] >= 0) & (marked_cells[..., 0] < w) & (marked_cells[..., 1] >= 0)
+                  & (marked_cells[..., 1] < h))
+            if ok.any():
+                inside = marked_cells[ok]
+                lo = (min(lo[0], int(inside[:, 0].min())), min(lo[1], int(inside[:, 1].min())))
+                hi = (max(hi[0], int(inside[:, 0].max()) + 1), max(hi[1], int(inside[:, 1].max()) + 1))
+        space = grid.cells(a, b, lo, hi, traced=per_particle * (b - a))
+        free_cells, hit_cells = _group_cells(lines.in_space(space), parts, r, ranges[cols], hit[cols],
+                                             free_range[cols], range_min=range_min)
+        if ok.any():
+            i = np.broadcast_to(np.arange(b - a)[:, None], ok.shape)[ok]
+            hit_cells.append(space.base(i, marked_cells[ok][:, 1], marked_cells[ok][:, 0]))
+        apply_update(space, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), steps)
+        space.close()
+
+
+def _group_cells(lines: Lines, parts: list[NDArray[np.intp]], r: NDArray[np.float64],
+                 ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
+                 range_min: float) -> tuple[NDArray[np.intp], list[NDArray[np.integer[Any]]]]:
+    """The cells to free (one intp array, repeats allowed) and the hit cells (per group)
+    of the beams of lines (the groups `parts` one after the other, traced r long; ranges,
+    hit, free_range in the same order)."""
+    assert lines.base is not None and lines.space is not None
+    hit_step = np.where(hit, range_step(lines.steps, r, ranges), -1)
+    until = np.where(hit, hit_step, range_step(lines.steps, r, free_range) + 1)
+    first_step = np.ceil(range_min / r * lines.steps).astype(np.int64)
+    bounds = np.cumsum([0] + [len(sel) for sel in parts])
+    groups = [lines.beams(slice(i, j)) for i, j in zip(bounds[:-1], bounds[1:])]
+    free, hit_cells = [], []
+    for i, ln in enumerate(groups):
+        g = slice(bounds[i], bounds[i + 1])
+        if ln.inside:
+            assert ln.base is not None
+            flat = flat_inside(ln, lines.space.stride,
+                                scratch("raycast_flat", ln.steps.shape + (ln.k_max,), ln.base.dtype))
+            free.append(free_of(flat, until[:, g], first_step[:, g]))
+            cells = np.take_along_axis(flat, np.maximum(hit_step[:, g], 0)[..., None], axis=2)[..., 0]
+            hit_cells.append(cells[hit_step[:, g] >= 0])
+        else:
+            rays = trace_lines(ln, float(r[bounds[i]]))
+            f, h = cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
+            free.append(f)
+            hit_cells.append(h)
+    # apply_update indexes faster with intp (space.write_type); the narrow type made the passes above cheaper.
+    out = scratch("raycast_free", (sum(len(f) for f in free),), lines.space.write_type)
+    return np.concatenate(free, out=out), hit_cells

@@ -1,0 +1,65 @@
+"""The trimmed update of the likelihood mode: no expected ranges, beams traced about as
+far as they reach, every free_beam_step-th beam clearing."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fastslam.config import SlamConfig
+from fastslam.filter.slam import FastSlam
+
+ANGLES_4 = np.radians(np.arange(0.0, 360.0, 4.0))
+
+
+@pytest.fixture
+def likelihood_map(room_scan, room_ranges):
+    """likelihood_map(free_beam_step) -> (filter, end points, mid points): one scan of the
+    pillar room written by the likelihood mode (trimmed trace) into 2 maps."""
+    def build(free_beam_step: int = 1) -> tuple[FastSlam, np.ndarray, np.ndarray]:
+        slam = FastSlam(SlamConfig(particles=2, seed=0, toggle_noise=0, weight_model="likelihood",
+                                   free_beam_step=free_beam_step))
+        pose = np.array([0.3, -0.2, 0.4])
+        slam.step(pose, room_scan(pose, ANGLES_4))
+        z = room_ranges(pose, ANGLES_4)
+        a = pose[2] + ANGLES_4
+        ends = pose[:2] + z[:, None] * np.stack([np.cos(a), np.sin(a)], 1)
+        mids = pose[:2] + 0.5 * z[:, None] * np.stack([np.cos(a), np.sin(a)], 1)
+        ends[z >= 3.4] = np.nan                                  # no return (max_range 3.5): no wall
+        return slam, ends, mids
+
+    return build
+
+
+def _values(slam: FastSlam, points: np.ndarray) -> np.ndarray:
+    c = slam.grid.world_to_cell(points)
+    return slam.grid.values(np.arange(slam.grid.particles)[:, None], c[:, 1], c[:, 0])   # (N, P)
+
+
+def _near(slam: FastSlam, points: np.ndarray, reduce=np.min) -> np.ndarray:
+    """(N, P) least (or most) log-odds among each point's cell and its 8 neighbours: a
+    digital beam line runs from the cell of the origin, so it may pass beside a point."""
+    c = slam.grid.world_to_cell(points[np.isfinite(points).all(axis=1)])
+    d = np.arange(-1, 2)
+    n = np.arange(slam.grid.particles)[:, None]
+    return reduce([slam.grid.values(n, c[:, 1] + dy, c[:, 0] + dx) for dy in d for dx in d], axis=0)
+
+
+def test_trimmed_map_update_marks_end_cells_and_clears_the_beams(likelihood_map):
+    slam, ends, mids = likelihood_map()
+    assert np.all(_near(slam, ends, np.max) > 0)               # walls at the end cells
+    assert np.all(_near(slam, mids) < 0)                 # the middle of every beam is free
+    far = np.array([[4.0, 4.0], [-4.0, 3.0]])                # outside the room: never touched
+    assert np.all(_values(slam, far) == 0)
+
+
+def test_free_beam_step_clears_along_every_kth_beam_but_marks_all_end_cells(likelihood_map):
+    slam, ends, mids = likelihood_map(free_beam_step=2)
+    full, _, _ = likelihood_map()
+    traced = np.arange(len(ANGLES_4)) % 2 == 0
+    assert np.all(_near(slam, mids[traced]) < 0)
+    assert np.any(_values(slam, mids[~traced]) == 0)         # untraced beams leave some unknown
+    assert np.all(_near(slam, ends[~traced], np.max) > 0)    # ...but their end cells are walls
+    def free_cells(s: FastSlam) -> int:
+        return sum(int(np.count_nonzero(s.grid.particle_map(i) < 0)) for i in range(s.grid.particles))
+
+    assert free_cells(slam) < free_cells(full)

@@ -90,6 +90,9 @@ class SlamConfig:
     match_beams: int = _num(60, 4, 10000, "scan-match with at most this many returns, evenly spread")
     match_icp_beams: int = _num(0, 0, 10000, "match_refine: icp: on at most this many returns (the ICP costs little "
                                 "per end point, the search and the weights much); 0 = match_beams")
+    match_icp_from_prior: bool = field(default=False, metadata={
+        "doc": "match_refine: icp: also start the ICP from the prior's centre (match_prior: motion: the motion's "
+               "prediction) and keep the better fit (the searches' heading steps exceed the ICP's reach)"})
     match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")
     match_sigma_xy: float = _num(0.01, 0.0, 1.0, "spread of the sample around a matched pose [m]")

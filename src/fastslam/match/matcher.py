@@ -33,7 +33,7 @@ from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
-from fastslam.match.refine import hill_climb, icp, surface_normals
+from fastslam.match.refine import hill_climb, icp_fit, surface_normals
 from fastslam.match.search import POOL, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -60,13 +60,15 @@ class MatchParams:
     free_space: bool = False     # end points in known free space count against a candidate, and
     max_free: float = 1.0        # a match with a larger share of them is not trusted
     icp_beams: int = 0           # ICP (refine "icp") on at most this many returns; 0: beams
+    icp_from_prior: bool = False  # ICP also from the prior's centre, the better fit kept
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
-                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams)
+                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
+                   icp_from_prior=cfg.match_icp_from_prior)
 
 
 @dataclass(frozen=True)
@@ -133,7 +135,8 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     cov = None
     if params.refine == "icp":
         fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
-        pose, info = icp(grid, pose, end_points(beams, fine), surface_normals(beams, fine), centre, spread)
+        pose, info = _icp(grid, pose, end_points(beams, fine), surface_normals(beams, fine), centre, spread,
+                          params.icp_from_prior)
         if params.covariance:
             cov = inv3(info)
     else:
@@ -176,13 +179,34 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     sel = spread_returns(beams, max(params.beams, params.icp_beams))
     local = end_points(beams, sel)
     centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
-    pose, info = icp(grid, start, local, surface_normals(beams, sel), centre, spread)
+    pose, info = _icp(grid, start, local, surface_normals(beams, sel), centre, spread, params.icp_from_prior)
     occupied, free = neighbourhood_flags(grid, pose, local)
     score = occupied.mean(axis=1)
     trusted = score >= params.min_score
     if params.free_space:
         trusted &= free.mean(axis=1) <= params.max_free
     return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score)
+
+
+def _icp(grid: GridMaps, start: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
+         centre: NDArray[np.float64], spread: NDArray[np.float64], from_prior: bool
+         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """ICP from the searched poses start (N, 3); (from_prior) also from the prior's centre,
+    each particle keeping the start whose result fits better.
+
+    The searches score end points on occupied cells, which a blurred wall a few cells
+    thick makes flat in heading over a degree or two, while the ICP's basin is about
+    half a degree (ACES: a search turned a prediction 0.5 degrees off to 0.7 degrees
+    off, and the ICP settled on the ghost of a wall drawn at that turn); the motion's
+    own prediction is often the better start."""
+    if not from_prior:
+        pose, info, _ = icp_fit(grid, start, local, normals, centre, spread)
+        return pose, info
+    n = len(start)
+    both = np.arange(2 * n) % n
+    pose, info, fit = icp_fit(grid, np.concatenate([start, centre]), local, normals, centre[both], spread, maps=both)
+    second = fit[n:] < fit[:n]
+    return np.where(second[:, None], pose[n:], pose[:n]), np.where(second[:, None, None], info[n:], info[:n])
 
 
 def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64]

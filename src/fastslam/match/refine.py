@@ -95,6 +95,14 @@ def surface_normals(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
 def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
          centre: NDArray[np.float64], spread: NDArray[np.float64]
          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """icp_fit without the fit: (poses (N, 3), information (N, 3, 3)), pose n on map n."""
+    pose, hess, _ = icp_fit(grid, pose, local, normals, centre, spread)
+    return pose, hess
+
+
+def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
+            centre: NDArray[np.float64], spread: NDArray[np.float64], maps: NDArray[np.intp] | None = None
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """3. Gauss-Newton steps on the distances from the end points to the centres of their
     nearest occupied cells (a weighted mean of them), measured along the surface normal where the scan gives one
     (normals (M, 2), robot frame; zero: the whole distance), plus the Gaussian prior
@@ -105,8 +113,16 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
     corridor the hill climb drifted backwards by ~1 % of the distance (the cells seen
     longest are behind the robot). Along the surface the distance is left out, or cell
     centres would pull the end points along walls.
+
+    maps: (N,) the map of each pose (default pose n on map n), so that one call refines
+    several starts per particle. Returns the poses, their information matrices (the
+    Hessian with the prior) and their fit: the objective, in squared std-devs, at the
+    pose before the last step (an end point with no occupied cell in reach costs as
+    much as one at the kernel's edge), for choosing among starts.
     """
     n = len(pose)
+    map_of = np.arange(n) if maps is None else np.asarray(maps, dtype=np.intp)
+    cap = (ICP_RADIUS * grid.resolution / ICP_SIGMA) ** 2                 # cost of an end point not found
     res = grid.resolution
     h, w = grid.shape
     d = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
@@ -137,7 +153,7 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
         # cells of the grid were never seen: nothing occupied to find there)
         iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
         iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
-        base = (np.arange(n)[:, None] * h + iv) * w + iu + lo          # (N, M), >= 0 (lo < 0)
+        base = (map_of[:, None] * h + iv) * w + iu + lo                # (N, M), >= 0 (lo < 0)
         if few:   # one gather: for a particle or two, the calls cost more than the cells
             np.take(cells, base[None] + offsets, out=kernel, mode="clip")
         else:
@@ -177,6 +193,9 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
         grad = np.stack([fx.sum(1) + p_xx * off[:, 0] + p_xy * off[:, 1],
                          fy.sum(1) + p_xy * off[:, 0] + p_yy * off[:, 1],
                          (rx * fy - ry * fx).sum(1) + p_tt * off[:, 2]], axis=1)
+        cost = ((gx * fx + gy * fy).sum(1) + cap * np.count_nonzero(~found, axis=1)
+                + p_xx * off[:, 0] ** 2 + 2 * p_xy * off[:, 0] * off[:, 1] + p_yy * off[:, 1] ** 2
+                + p_tt * off[:, 2] ** 2)
         pose -= solve3(hess, grad)
     pose[:, 2] = wrap_angle(pose[:, 2])
-    return pose, hess
+    return pose, hess, cost

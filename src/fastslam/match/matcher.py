@@ -33,7 +33,7 @@ from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
-from fastslam.match.refine import hill_climb, icp_fit, surface_normals
+from fastslam.match.refine import hill_climb, icp_fit, prior_information, surface_normals
 from fastslam.match.search import POOL, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -79,12 +79,16 @@ class Match:
     trusted: (N,) bool, whether each match passed the checks.
     covariance: (N, 3, 3) of each match (ICP with covariance=True), else None.
     score: (N,) share of the matched end points on occupied 2x2 blocks (None: no match).
+    scan_information: (N, 3, 3) what the ICP's end points alone know of each pose (its
+    Hessian less the prior), over icp_points end points (ICP only, else None).
     """
 
     poses: NDArray[np.float64]
     trusted: NDArray[np.bool_]
     covariance: NDArray[np.float64] | None = None
     score: NDArray[np.float64] | None = None  # (N,) share of the end points on occupied cells
+    scan_information: NDArray[np.float64] | None = None
+    icp_points: int = 0
 
 
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
@@ -132,11 +136,13 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     scores = grid_search(grid.logodds, grid.origin, res, pose, turns, local, 1)
     pose = pick(scores, pose, turns, 1, res, centre, spread, m)
     # 3. finer than a cell
-    cov = None
+    cov = scan_info = None
+    fine = sel
     if params.refine == "icp":
         fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
         pose, info = _icp(grid, pose, end_points(beams, fine), surface_normals(beams, fine), centre, spread,
                           params.icp_from_prior)
+        scan_info = info - prior_information(centre, spread)
         if params.covariance:
             cov = inv3(info)
     else:
@@ -146,7 +152,8 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     trusted = (score >= params.min_score) & (known >= params.min_known)
     if params.free_space:
         trusted &= (flags < 0).mean(axis=1) <= params.max_free
-    return Match(poses=pose, trusted=trusted, covariance=cov, score=score)
+    return Match(poses=pose, trusted=trusted, covariance=cov, score=score, scan_information=scan_info,
+                 icp_points=len(fine) if scan_info is not None else 0)
 
 
 def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
@@ -185,7 +192,8 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     trusted = score >= params.min_score
     if params.free_space:
         trusted &= free.mean(axis=1) <= params.max_free
-    return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score)
+    return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score,
+                 scan_information=info - prior_information(centre, spread), icp_points=len(sel))
 
 
 def _icp(grid: GridMaps, start: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],

@@ -92,6 +92,20 @@ def surface_normals(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
     return out
 
 
+def prior_information(centre: NDArray[np.float64], spread: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N, 3, 3) information of the Gaussian prior with std-devs spread (3,) along and
+    across the heading of centre (N, 3) and of the heading, in the map frame: the
+    prior part of the Hessian icp_fit returns."""
+    c, s = cos_sin(centre[:, 2])
+    ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
+    out = np.zeros((len(centre), 3, 3))
+    out[:, 0, 0] = ia * c ** 2 + ic * s ** 2
+    out[:, 1, 1] = ia * s ** 2 + ic * c ** 2
+    out[:, 0, 1] = out[:, 1, 0] = (ia - ic) * c * s
+    out[:, 2, 2] = 1.0 / spread[2] ** 2
+    return out
+
+
 def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
          centre: NDArray[np.float64], spread: NDArray[np.float64]
          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -1,12 +1,15 @@
 """`make bench [SUITE...]`: speed, memory and accuracy figures (recorded in docs/benchmarks.md).
 
-    PYTHONPATH=src:. python -m bench [speed] [intel] [office] [matcher] [longrun] [accuracy]   (default: all)
+    PYTHONPATH=src:. python -m bench [speed] [intel] [office] [matcher] [longrun] [accuracy] [messages] [soak]
+    (default: all)
 
 speed: one filter step for N in {20, 50, 100}, 60 and 360 beams, 10 m and 40 m maps.
 intel, office: the presets' accuracy (real and slam on Intel, burger and slam on the office; bench.modes).
 accuracy: config/real.yaml over the whole development set through the offline tool.
 matcher: the scan matcher alone against reference poses.
 longrun: 30 simulated minutes of the office loop, time and memory sampled.
+messages: the node's large messages (a 4000 x 4000 map, a 108 000-pose path), genpy against packed.
+soak: the live node (slam.launch) for 30 simulated minutes under every fault class at once.
 Each suite is a module of this folder, also runnable alone (`python -m bench.speed`).
 """
 from __future__ import annotations
@@ -17,7 +20,8 @@ import sys
 
 SUITES = {"speed": ("bench.speed", []), "intel": ("bench.modes", []),
           "office": ("bench.modes", ["--office"]), "matcher": ("bench.matcher", None),
-          "longrun": ("bench.longrun", []), "accuracy": ("bench.accuracy", [])}
+          "longrun": ("bench.longrun", []), "accuracy": ("bench.accuracy", []),
+          "messages": ("bench.messages", []), "soak": ("bench.soak", [])}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,6 +15,8 @@ from fastslam.filter.scan import Scan, laser_problem
 from fastslam.geometry import yaw_from_quaternion
 from fastslam.transforms import mount_from_matrix, transform_matrix
 
+from .packed import PackedGrid
+
 
 def quaternion_from_yaw(yaw: float) -> Quaternion:
     return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
@@ -85,10 +87,9 @@ def occupancy_msgs(occupancy: np.ndarray, resolution: float, origin: np.ndarray,
     h, w = occupancy.shape
     meta = MapMetaData(map_load_time=stamp, resolution=resolution, width=w, height=h)
     meta.origin = pose_msg(origin[0], origin[1], 0.0)
-    msg = OccupancyGrid(info=meta)
+    msg = PackedGrid(info=meta)
     msg.header.frame_id, msg.header.stamp = frame, stamp
-    # int8[] serialises from a sequence of ints (bytes would read as 0..255).
-    msg.data = occupancy.ravel().tolist()
+    msg.data = np.ascontiguousarray(occupancy, dtype=np.int8).ravel()   # serialised in one write
     return msg, meta
 
 

@@ -16,6 +16,7 @@ from typing import Any, Mapping, NoReturn, TypeVar
 from fastslam.config import SlamConfig, translate_gmapping
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
+from fastslam.filter.budget import MAX_BEAMS, MAX_MAP_EXTENT, Limits, startup_problem
 
 T = TypeVar("T")
 
@@ -42,6 +43,12 @@ class NodeConfig:
     max_odom_speed: float = _num(5.0, 0.01, 1000.0, "odometry stepping faster than this between two messages is "
                                  "out of step: counted, kept, merged with the previous one [m/s]")
     max_odom_jump: float = _num(5.0, 0.01, 1e6, "odometry farther than this from the last second's is a kidnap [m]")
+    reset_backwards: float = _num(1.0, 0.0, 1e6, "a scan stamped before the previous one by at most this is out "
+                                  "of order (dropped, counted); by more, the filter resets, the map saved first [s]")
+    max_beams: int = _num(MAX_BEAMS, 16, 10**7, "scans with more beams are evenly subsampled to this many")
+    max_map_extent: float = _num(MAX_MAP_EXTENT, 1.0, 1e6, "the map never grows past this side length [m]")
+    memory_limit_mb: float = _num(0.0, 0.0, 1e9, "memory the node may use; the maps never grow past it less a "
+                                  "reserve; 0 = 80 % of the machine's (or the cgroup's or ulimit's) [MB]")
     max_future: float = _num(1.0, 0.0, 3600.0, "scans stamped further ahead of now are rejected [s]")
     tf_timeout: float = _num(0.2, 0.0, 10.0, "how long to wait for the laser's mounting in tf [s]")
     queue_size: int = _num(1, 1, 100, "scan subscriber queue; 1 drops scans the node cannot keep up with")
@@ -103,7 +110,15 @@ def split_params(params: Mapping[str, Any], notices: list[str] | None = None) ->
         raise ConfigError(f"unknown parameter '{unknown[0]}'")
     node = NodeConfig(**coerce(NodeConfig, {k: v for k, v in ours.items() if k in NODE_KEYS}))
     core = SlamConfig.from_dict({k: v for k, v in ours.items() if k in CORE_KEYS}, notices=[])
+    problem = startup_problem(core, limits(node, core))
+    if problem:
+        raise ConfigError(problem)
     return node, core
+
+
+def limits(node: NodeConfig, core: SlamConfig) -> Limits:
+    """The filter's bounds: max_map_extent, and the maps' share of memory_limit_mb."""
+    return Limits.for_memory(node.memory_limit_mb, core.particles, node.max_beams, node.max_map_extent)
 
 
 def _exit_on(err: Exception) -> NoReturn:

@@ -15,6 +15,10 @@ the last processed scan composed onto it in between (the odometry's, or with
 track_scans the scan matcher's against the best map); live_poses.txt, one pose per
 scan as map->odom gave it during the run: the best particle at the last processed
 scan, moved since by that same motion (FastSlam.live_pose, as the node publishes it).
+The node's stream rules and bounds apply (fastslam.filter.frontend, filter.budget); a
+reset (time going back by more than reset_backwards) leaves the map before it in
+map_before_reset_<k>.pgm/.yaml, and each kind of dropped message is one warning line
+with its count.
 
 With a reference, the bag's /ground_truth (nav_msgs/Odometry, as the simulator records
 it) or ``--reference FILE`` (``t x y theta`` or TUM lines), stats.json gets the ATE and
@@ -39,7 +43,8 @@ from tqdm import tqdm
 from fastslam.config import ConfigError, SlamConfig, parse_override
 from fastslam.eval.render import ESTIMATE_RGB, TRUTH_RGB, map_picture, write_png
 from fastslam.eval.trajectory import align_2d, apply_alignment, match_by_time, score
-from fastslam.filter.frontend import Dropped, Frontend, drop_key
+from fastslam.filter.budget import AUTO_SHARE, Limits, startup_problem
+from fastslam.filter.frontend import Dropped, Frontend, Reset, drop_key
 from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.slam import FastSlam
 from fastslam.geometry import compose, relative
@@ -74,6 +79,8 @@ class OfflineResult:
     update_ms: list[float] = field(default_factory=list)
     dropped: dict[str, int] = field(default_factory=dict)
     events: list[str] = field(default_factory=list)
+    drop_reasons: dict[str, str] = field(default_factory=dict)  # kind -> the first full reason
+    reset_maps: list[tuple[NDArray[np.int8], float, tuple[float, float, float]]] = field(default_factory=list)
     rules: dict[str, int] = field(default_factory=dict)  # how often each odometry rule fired
     # one row per scan the filter saw: t, odometry x y theta, live pose x y theta,
     # index of the last processed update, filter life (resets before it), processed (0/1)
@@ -110,14 +117,22 @@ class OfflineResult:
                 "ms_per_update_median": float(np.median(ms)), "ms_per_update_p95": float(np.percentile(ms, 95)),
                 "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                 "dropped": self.dropped, "odometry_rules": self.rules, "events": self.events,
+                "map_growth_refused": self.slam.refusals, "resets": len(self.reset_maps),
                 **({"accuracy": self.accuracy} if self.accuracy is not None else {})}
 
 
-def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> OfflineResult:
-    """Processes every message of the bag in time order."""
-    slam = FastSlam(cfg)
-    front = Frontend(slam)
+def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False, limits: Limits | None = None) -> OfflineResult:
+    """Processes every message of the bag in time order, with the node's rules and bounds
+    (default: the node's defaults); the maps of the lives before each reset are kept."""
+    slam = FastSlam(cfg, limits=limits if limits is not None else default_limits(cfg))
     result = OfflineResult(slam=slam)
+
+    def keep_map(_event: Reset) -> None:
+        grid = slam.grid
+        result.reset_maps.append((slam.best_occupancy(), grid.resolution,
+                                  (float(grid.origin[0]), float(grid.origin[1]), 0.0)))
+
+    front = Frontend(slam, before_reset=keep_map)
     mount = (data.mount.x, data.mount.y, data.mount.yaw)
     start = time.perf_counter()
     bar = tqdm(total=len(data.scans), unit="scan", disable=not progress, file=sys.stderr, dynamic_ncols=True,
@@ -135,6 +150,8 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
             scan = Scan.from_laser(rec.ranges, rec.angle_min, rec.angle_increment, rec.range_min,
                                    rec.range_max, mount=mount, upside_down=data.mount.upside_down, stamp=rec.t)
             info = front.add_scan(scan)
+            if info.refused:
+                result.events.append(info.refused)
             odom = front.scan_odom
             assert odom is not None  # every add_scan that returns sets it
             if info.processed:
@@ -146,6 +163,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False) -> Offlin
         except Dropped as err:
             key = drop_key(str(err))
             result.dropped[key] = result.dropped.get(key, 0) + 1
+            result.drop_reasons.setdefault(key, str(err))
         result.events += [str(e) for e in front.events]
         front.events.clear()
         if isinstance(rec, ScanRecord):
@@ -168,6 +186,8 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     occ = slam.best_occupancy()
     origin = (float(grid.origin[0]), float(grid.origin[1]), 0.0)
     save_map(out / "map", occ, grid.resolution, origin)
+    for k, (before, resolution, at) in enumerate(result.reset_maps, 1):   # the map is never lost to a reset
+        save_map(out / f"map_before_reset_{k}", before, resolution, at)
     traj = slam.trajectory()
     write_trajectory(out / "trajectory.txt", traj[:, 0], traj[:, 1:], fmt=fmt,
                      comment="final best particle, one pose per processed scan")
@@ -189,6 +209,14 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     write_png(out / "map.png", map_picture(occ, grid.resolution, origin, paths))
     (out / "stats.json").write_text(json.dumps(result.stats(), indent=2) + "\n")
     (out / "config.yaml").write_text(yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+
+
+OFFLINE_LIMIT = f"the memory limit ({AUTO_SHARE:.0%} of this machine's)"
+
+
+def default_limits(cfg: SlamConfig) -> Limits:
+    """The node's default bounds: max_map_extent, AUTO_SHARE of this machine's memory."""
+    return Limits.for_memory(0.0, cfg.particles)
 
 
 class NothingUsable(ValueError):
@@ -265,6 +293,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.seed is not None:
             overrides["seed"] = args.seed
         cfg = SlamConfig.from_yaml(args.config, overrides)
+        problem = startup_problem(cfg, default_limits(cfg), OFFLINE_LIMIT)
+        if problem:
+            raise ConfigError(problem)
         with staged_folder(out) as work:   # checked before the run; filled only if it succeeds
             data = read_bag(args.bag, args.scan_topic, args.odom_topic)
             reference = load_reference(data, args.bag, args.reference)
@@ -294,6 +325,8 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     for event in result.events:
         print(f"warning: {event}", file=sys.stderr)
+    for key, n in result.dropped.items():   # one line per kind of drop
+        print(f"warning: {n} message{'s' if n > 1 else ''} dropped: {result.drop_reasons[key]}", file=sys.stderr)
     s = result.stats()
     print(f"{s['scans']} scans, {s['updates']} updates in {s['wall_seconds']:.1f} s "
           f"({s['ms_per_update_median']:.1f} ms median per update), peak {s['peak_memory_mb']:.0f} MB; "

@@ -6,19 +6,26 @@ distance, whatever the time: a pose farther than max_odom_jump from every pose o
 last JUMP_WINDOW seconds (not integrated). Odometry out of step (faster than
 max_odom_speed since the previous message, as two sources interleaved on one topic
 give, or a log's made-up stamps) is kept: two such messages with no scan between them
-become one, their mean; a message older than the newest is put in its place. Time
-going backwards resets the filter; unusable scans are dropped with a reason. Each rule
-is counted (`counts`) and reported at its 1st, 10th, 100th... firing, as typed events
-(Kidnap, Notice; Reset at every reset) for the caller to log and act on.
+become one, their mean; a message older than the newest is put in its place, or, older
+by more than reset_backwards, starts the odometry again (a restart). A scan stamped
+before the previous one by at most reset_backwards is out of order (dropped, counted);
+by more, or after the caller reports that the clock started again (`restart`), the
+filter resets, after `before_reset` had a look at what was mapped.
+Scans of more than max_beams beams are evenly subsampled; unusable scans are dropped
+with a reason. Each rule is counted (`counts`) and reported at its 1st, 10th, 100th...
+firing, as typed events (Kidnap, Notice; Reset at every reset) for the caller to log
+and act on.
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, Union
 
 import numpy as np
 
+from fastslam.filter.budget import MAX_BEAMS
 from fastslam.filter.odom_buffer import OdomBuffer
 from fastslam.filter.scan import Scan, fov_problem
 from fastslam.filter.slam import FastSlam, StepInfo
@@ -50,13 +57,18 @@ class Kidnap:
 
 @dataclass(frozen=True)
 class Reset:
-    """Scan time went backwards: the filter starts again (the caller clears what it keeps
-    from before, e.g. tf and map->odom)."""
+    """Scan time went backwards by more than reset_backwards, or the clock started again:
+    the filter starts again (the caller clears what it keeps from before, e.g. tf and
+    map->odom)."""
 
     previous: float  # stamp of the last scan before [s]
     stamp: float     # the scan that went back [s]
+    clock: bool = False  # the caller saw the clock start again
 
     def __str__(self) -> str:
+        if self.clock:
+            return (f"resetting the filter: the clock started again (last scan {self.previous:.2f} s, "
+                    f"this one {self.stamp:.2f} s): bag or simulator restarted?")
         return (f"resetting the filter: time went backwards ({self.previous:.2f} -> "
                 f"{self.stamp:.2f} s): bag restarted or looped?")
 
@@ -90,6 +102,10 @@ class Frontend:
     odom_buffer: float = 10.0    # [s] of odometry kept
     max_odom_speed: float = 5.0  # [m/s] a step between two odometry messages faster than this is out of step
     max_odom_jump: float = 5.0   # [m] farther from the recent odometry is a kidnap (the logs step <= 3.5 m)
+    reset_backwards: float = 1.0  # [s] a scan this much older than the previous one is out of order; more: reset
+    max_beams: int = MAX_BEAMS   # scans with more beams are evenly subsampled to this many
+    # called with the Reset before the filter forgets, if it had mapped anything (to save the map)
+    before_reset: Callable[[Reset], None] | None = None
     events: list[Event] = field(default_factory=list)  # for the caller to log and act on, oldest first
     counts: dict[str, int] = field(default_factory=dict)  # how often each rule fired
 
@@ -101,6 +117,7 @@ class Frontend:
         self.resets = 0
         self._rebase = False
         self._scan_since_odom = True  # a scan used the odometry since the newest message
+        self._restart = False         # the clock started again: the next scan resets
 
     def add_odom(self, t: float, pose: NDArray[np.float64]) -> None:
         """Buffers an odometry pose (x, y, theta) stamped t; raises Dropped if unusable."""
@@ -109,6 +126,15 @@ class Frontend:
             raise Dropped("odometry with NaN or inf")
         latest = self.odom.latest
         if latest is None:
+            self._accept(t, pose)
+            return
+        if t < latest[0] - self.reset_backwards:
+            # older than the newest by more than reset_backwards: the odometry started again
+            # (a bag, driver or simulator restarted); the buffer starts again with it
+            self._fire("odometry restarted", lambda n: Notice(
+                "odometry restarted", f"odometry stamped {latest[0] - t:.2f} s before the newest message "
+                f"(> reset_backwards {self.reset_backwards:g} s): taken as a restart, the older odometry dropped", n))
+            self.odom.clear()
             self._accept(t, pose)
             return
         if t < latest[0]:
@@ -141,24 +167,42 @@ class Frontend:
         self.odom.add(t, pose)
         self._scan_since_odom = False
 
-    def _fire(self, rule: str, event: Callable[[int], Event]) -> None:
-        """Counts a rule; reports it (event(count)) at its 1st, 10th, 100th... firing."""
+    def _fire(self, rule: str, event: Callable[[int], Event], once: bool = False) -> None:
+        """Counts a rule; reports it (event(count)) at its 1st, 10th, 100th... firing
+        (only the 1st if once)."""
         n = self.counts.get(rule, 0) + 1
         self.counts[rule] = n
-        if n == 10 ** int(round(np.log10(n))):
+        if n == 1 or (not once and n == 10 ** int(round(np.log10(n)))):
             self.events.append(event(n))
+
+    def restart(self) -> None:
+        """The clock started again (a bag or simulator restarted): the next scan resets the
+        filter, however close its stamp is to the last one. Odometry from now on is the
+        new run's."""
+        self.odom.clear()
+        self._restart = True
 
     def add_scan(self, scan: Scan) -> StepInfo:
         """Runs one filter step with the odometry at the scan's stamp; raises Dropped."""
         t = scan.stamp
         if not t > 0:
             raise Dropped("scan stamped zero")
+        scan = self._limit_beams(scan)
         problem = fov_problem(scan, self.slam.cfg)
         if problem:
             raise Dropped(problem)
-        if self.last_stamp is not None and t < self.last_stamp:
-            self.events.append(Reset(self.last_stamp, t))
-            self.reset()
+        if self.last_stamp is not None and (self._restart or t < self.last_stamp):
+            back = self.last_stamp - t
+            if not self._restart and back <= self.reset_backwards:
+                raise Dropped(f"scan stamped {back:.3f} s before the previous one (out of order: within "
+                              f"reset_backwards {self.reset_backwards:g} s, so not a restart)")
+            event = Reset(self.last_stamp, t, clock=self._restart)
+            if self.before_reset is not None and self.slam.updates > 0:
+                self.before_reset(event)
+            self.events.append(event)
+            latest = self.odom.latest   # the new run's odometry (near the scan) is kept, the old one's not
+            self.reset(keep_odometry=latest is not None and latest[0] - t <= self.reset_backwards)
+        self._restart = False
         odom = self.odom.at(t, self.odom_timeout)
         if odom is None:
             latest = self.odom.latest
@@ -177,9 +221,22 @@ class Frontend:
             self.last_odom = odom
         return info
 
-    def reset(self) -> None:
+    def _limit_beams(self, scan: Scan) -> Scan:
+        """The scan, or max_beams of its beams evenly spread over it."""
+        m = len(scan.ranges)
+        if m <= self.max_beams:
+            return scan
+        self._fire("scan beams subsampled", lambda n: Notice(
+            "scan beams subsampled", f"scans of {m} beams (> max_beams {self.max_beams}) are evenly subsampled "
+            f"to {self.max_beams} beams (said once)", n), once=True)
+        keep = np.arange(self.max_beams) * m // self.max_beams
+        return dataclasses.replace(scan, ranges=scan.ranges[keep], angles=scan.angles[keep])
+
+    def reset(self, keep_odometry: bool = False) -> None:
+        """Forgets the filter and, unless keep_odometry (the new run's, after a restart), the odometry."""
         self.slam.reset()
-        self.odom.clear()
+        if not keep_odometry:
+            self.odom.clear()
         self.last_stamp = None
         self.last_odom = None
         self.scan_odom = None

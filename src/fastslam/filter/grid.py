@@ -8,6 +8,7 @@ limits set the scale, so l_min..l_max always fit in -127..127.
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -92,20 +93,50 @@ class GridMaps:
         if self.covers(xmin, ymin, xmax, ymax):
             return False
         h, w = self.shape
+        left, right, down, up = self._padding(xmin, ymin, xmax, ymax, fraction)
+        n = self.logodds.shape[0]
+        grown = np.zeros((n, h + down + up, w + left + right), dtype=LOGODDS_DTYPE)
+        grown[:, down:down + h, left:left + w] = self.logodds
+        self.logodds = grown
+        self.origin = self.origin - np.array([left, down]) * self.resolution
+        return True
+
+    def _padding(self, xmin: float, ymin: float, xmax: float, ymax: float,
+                 fraction: float) -> tuple[int, int, int, int]:
+        """Cells grow_to adds on the left, right, bottom and top."""
+        h, w = self.shape
         r = self.resolution
         gx0, gy0, gx1, gy1 = self.extent
 
         def need(short: float, size: int) -> int:
             return 0 if short <= 0 else max(math.ceil(short / r), int(size * fraction))
 
-        left, right = need(gx0 - xmin, w), need(xmax - gx1 + r, w)
-        down, up = need(gy0 - ymin, h), need(ymax - gy1 + r, h)
-        n = self.logodds.shape[0]
-        grown = np.zeros((n, h + down + up, w + left + right), dtype=LOGODDS_DTYPE)
-        grown[:, down:down + h, left:left + w] = self.logodds
-        self.logodds = grown
-        self.origin = self.origin - np.array([left, down]) * r
-        return True
+        return need(gx0 - xmin, w), need(xmax - gx1 + r, w), need(gy0 - ymin, h), need(ymax - gy1 + r, h)
+
+    # -- memory (the node's budget; a tiled grid counts what it allocated) ---------------
+    @staticmethod
+    def bytes_for(n: int, shape: tuple[int, int]) -> int:
+        """Bytes n maps of shape (H, W) take when every cell is held."""
+        return int(n) * int(shape[0]) * int(shape[1]) * np.dtype(LOGODDS_DTYPE).itemsize
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes the maps hold now."""
+        return int(self.logodds.nbytes)
+
+    def grown_shape(self, xmin: float, ymin: float, xmax: float, ymax: float, *,
+                    fraction: float = 0.5) -> tuple[int, int]:
+        """(H, W) after grow_to with these arguments."""
+        left, right, down, up = self._padding(xmin, ymin, xmax, ymax, fraction)
+        h, w = self.shape
+        return h + down + up, w + left + right
+
+    def growth_bytes(self, xmin: float, ymin: float, xmax: float, ymax: float, *, fraction: float = 0.5) -> int:
+        """Bytes grow_to with these arguments allocates: the whole grown maps, since the
+        old ones are freed only after the copy (0 when the box is covered)."""
+        if self.covers(xmin, ymin, xmax, ymax):
+            return 0
+        return self.bytes_for(len(self.logodds), self.grown_shape(xmin, ymin, xmax, ymax, fraction=fraction))
 
     def reorder(self, parent: NDArray[np.intp]) -> None:
         """Slot s takes the map of slot parent[s]; only slots that change are copied."""
@@ -146,6 +177,18 @@ class GridMaps:
 
 def logodds_to_occupancy(logodds: NDArray[np.integer[Any]], scale: float = 1.0) -> NDArray[np.int8]:
     """Log-odds (any shape, times scale) -> int8 occupancy: -1 unknown (exactly 0), else 0..100."""
+    if logodds.dtype == np.int8:   # the grids: a table of the 256 values, no float temporaries
+        return _occupancy_table(scale).take(logodds.view(np.uint8))
+    return _occupancy(logodds, scale)
+
+
+@functools.lru_cache(maxsize=8)
+def _occupancy_table(scale: float) -> NDArray[np.int8]:
+    """Occupancy of each int8 log-odds, indexed by its byte (0..255)."""
+    return _occupancy(np.arange(256, dtype=np.uint8).view(np.int8), scale)
+
+
+def _occupancy(logodds: NDArray[np.integer[Any]], scale: float) -> NDArray[np.int8]:
     p = 1.0 / (1.0 + np.exp(-logodds.astype(np.float64) * scale))
     occ = np.rint(p * 100.0).astype(np.int8)
     occ[logodds == 0] = -1

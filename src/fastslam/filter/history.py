@@ -47,16 +47,25 @@ class History:
         if len(self._poses) % PRUNE_EVERY == 0:
             self._prune()
 
-    def path(self, particle: int) -> NDArray[np.float64]:
-        """(T, 4) rows t, x, y, theta: the path of the particle in slot `particle` through
-        every processed scan, following its ancestors back through resampling."""
+    @property
+    def settled(self) -> int:
+        """Rows every lineage shares (the trunk): the first rows of every path, which no
+        later update changes (a caller may keep what it made of them)."""
+        return self._trunk_len
+
+    def path(self, particle: int, start: int = 0) -> NDArray[np.float64]:
+        """(T - start, 4) rows t, x, y, theta: the path of the particle in slot `particle`
+        through every processed scan from the start-th on, following its ancestors back
+        through resampling."""
         j = int(particle)
         t_len = len(self._poses)
-        out = np.empty((self._trunk_len + t_len, 4))
-        out[:self._trunk_len] = self._trunk[:self._trunk_len]
-        for t in range(t_len - 1, -1, -1):
-            out[self._trunk_len + t, 0] = self._stamps[t]
-            out[self._trunk_len + t, 1:] = self._poses[t][j]
+        trunk = self._trunk_len
+        out = np.empty((max(trunk + t_len - start, 0), 4))   # row k of the path is out[k - start]
+        first = min(start, trunk)
+        out[:trunk - first] = self._trunk[first:trunk]
+        for t in range(t_len - 1, max(start - trunk, 0) - 1, -1):
+            out[trunk + t - start, 0] = self._stamps[t]
+            out[trunk + t - start, 1:] = self._poses[t][j]
             j = int(self._parent[t][j])
         return out
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from fastslam.config import SlamConfig
 from fastslam.filter import raycast
+from fastslam.filter.budget import Limits
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
@@ -51,14 +52,18 @@ class StepInfo:
     clipped: bool = False
     matched: int = 0  # particles whose pose came from the scan matcher
     entropy: float = 0.0  # of the weights before resampling [nat]
+    refused: str = ""  # why the maps were not grown, at the first refusal of this filter's life
 
 
 class FastSlam:
     """The particle set: poses (N, 3), log-weights (N,), maps (N, H, W), trajectories."""
 
-    def __init__(self, cfg: SlamConfig, rng: np.random.Generator | None = None) -> None:
+    def __init__(self, cfg: SlamConfig, rng: np.random.Generator | None = None, *,
+                 limits: Limits | None = None) -> None:
         self.cfg = cfg
         self.rng = rng if rng is not None else np.random.default_rng(cfg.rng_seed)
+        self.limits = limits if limits is not None else Limits()
+        self.refusals = 0  # growths refused (max_map_extent, memory), over every life
         self.reset()
 
     def reset(self) -> None:
@@ -83,6 +88,7 @@ class FastSlam:
         self._predicted = self.poses.copy()          # noise-free motion of the last update
         self._motion_std = np.zeros(3)               # and its spread (match_prior: motion)
         self._stamp = -np.inf
+        self._refused = False  # a growth was refused in this life (reported once)
         self.history = History()
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
@@ -117,7 +123,7 @@ class FastSlam:
         else:
             self._move(odom)                                    # 1. motion update
         self._odom, self._stamp = odom, scan.stamp
-        grew, clipped = self._cover_beams()
+        grew, clipped, refused = self._cover_beams()
         matched = 0
         if self.cfg.proposal == "scan_match" and not first:
             matched = self._propose(beams)                      # 1b. scan-matching proposal
@@ -132,7 +138,7 @@ class FastSlam:
         self._live_odom = self._match_odom = odom
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
-                        entropy=entropy(w))
+                        entropy=entropy(w), refused=refused)
 
     # -- the named steps -------------------------------------------------------------
     def _anchor(self, odom: NDArray[np.float64]) -> None:
@@ -200,16 +206,32 @@ class FastSlam:
         if match.trusted[0]:
             self.live_pose = match.poses[0]
 
-    def _cover_beams(self) -> tuple[bool, bool]:
-        """Grows the maps so every particle's beams stay inside; or reports clipping."""
+    def _cover_beams(self) -> tuple[bool, bool, str]:
+        """Grows the maps so every particle's beams stay inside, within the limits (by
+        only what is missing if the usual growth would pass them); else beams past the
+        edge are clipped. Returns (grew, clipped, why refused: at the first refusal)."""
         reach = self.cfg.max_range + 2 * self.cfg.map_resolution
         lo = self.poses[:, :2].min(axis=0) - reach
         hi = self.poses[:, :2].max(axis=0) + reach
-        if self.grid.covers(lo[0], lo[1], hi[0], hi[1]):
-            return False, False
-        if self.cfg.map_grow:
-            return self.grid.grow_to(lo[0], lo[1], hi[0], hi[1], fraction=self.cfg.map_grow_fraction), False
-        return False, True
+        box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+        if self.grid.covers(*box):
+            return False, False, ""
+        if not self.cfg.map_grow:
+            return False, True, ""
+        fraction = self.cfg.map_grow_fraction
+        problem = self.limits.growth_problem(self.grid, box, fraction)
+        if problem and fraction > 0 and self.limits.growth_problem(self.grid, box, 0.0) is None:
+            problem, fraction = None, 0.0
+        if problem is None:
+            try:
+                return self.grid.grow_to(*box, fraction=fraction), False, ""
+            except MemoryError:
+                problem = f"the allocation of {self.grid.growth_bytes(*box, fraction=fraction) / 2**20:.0f} MB failed"
+        self.refusals += 1
+        first = not self._refused
+        self._refused = True
+        return False, True, (f"map growth refused: {problem}; mapping goes on inside the map "
+                             "(beams past its edge are clipped)") if first else ""
 
     def _beam_frames(self, beams: Beams) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(N, 2) beam origins and (N, M) beam directions of every particle, map frame."""

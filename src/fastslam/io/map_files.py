@@ -114,7 +114,8 @@ def save_map(path_stem_or_yaml: str | os.PathLike[str], occupancy: NDArray[np.in
         versioned: the image gets a new unique name (``<stem>.saved-<random>.pgm``) and the
             previous one is removed once the YAML points to the new one: a save killed
             at any moment leaves a YAML and the image it names (saves that overwrite
-            a map in use, as the node's do).
+            a map in use, as the node's do). ``<stem>.pgm`` is then made the same file
+            (a hard link; a copy where links fail), for whoever opens the image by name.
 
     Returns:
         (pgm_path, yaml_path).
@@ -187,17 +188,30 @@ def _save_versioned(yaml_path: Path, occ: NDArray[np.integer[Any]], resolution: 
         raise
     if before is not None and before != pgm_path and before.name.startswith(f"{stem}{VERSIONED}"):
         _discard(str(before))
+    _same_file(pgm_path, yaml_path.with_name(f"{stem}.pgm"))
     return pgm_path, yaml_path
 
 
+def _same_file(image: Path, plain: Path) -> None:
+    """Makes plain (<stem>.pgm) the same image as the versioned one, replacing it at once."""
+    tmp = plain.with_name(f".{plain.name}.{os.urandom(4).hex()}.tmp")
+    try:
+        os.link(image, tmp)
+        os.replace(tmp, plain)
+    except OSError:   # a file system without hard links: a copy, staged and renamed
+        _discard(str(tmp))
+        _atomic_write_all([(plain, image.read_bytes())])
+
+
 def remove_stale(path_stem_or_yaml: str | os.PathLike[str]) -> list[Path]:
-    """Removes what killed saves of this map left: temporary files and versioned images
-    its YAML does not name. Returns what was removed."""
+    """Removes what killed saves of this map left: temporary files (its own and those of
+    the saves before a reset, ``<stem>-<date>``) and versioned images its YAML does not
+    name. Returns what was removed."""
     pgm_path, yaml_path = _paths(path_stem_or_yaml)
     stem = yaml_path.name[:-len(yaml_path.suffix)]
     keep = _image_of(yaml_path)
     folder = yaml_path.parent
-    stale = list(folder.glob(f".{stem}.*.tmp"))
+    stale = list(folder.glob(f".{stem}.*.tmp")) + list(folder.glob(f".{stem}-[0-9]*.tmp"))  # and reset saves'
     stale += [p for p in folder.glob(f"{stem}{VERSIONED}*.pgm") if p != keep]
     for p in stale:
         _discard(str(p))

@@ -65,3 +65,28 @@ def test_map_file_default_lies_in_ros_home(monkeypatch: pytest.MonkeyPatch, tmp_
     assert map_path("~/maps/x") == str(tmp_path / "maps" / "x")
     monkeypatch.delenv("ROS_HOME")
     assert map_path("m") == str(tmp_path / ".ros" / "m")     # rospkg's default
+
+
+def test_a_configuration_too_large_for_the_memory_limit_is_a_parameter_error():
+    big = {"particles": 200, "map_width": 400.0, "map_height": 400.0}
+    with pytest.raises(ConfigError) as err:
+        split_params({**big, "memory_limit_mb": 4096})
+    assert str(err.value).startswith("memory_limit_mb: particles=200 maps of 400 x 400 m at map_resolution=0.05 m "
+                                     "(8000 x 8000 cells) need 12208 MB, more than the limit leaves for maps")
+    node, core = split_params({**big, "memory_limit_mb": 20000})
+    assert node.memory_limit_mb == 20000.0 and core.particles == 200
+    with pytest.raises(ConfigError, match=r"max_map_extent=300 must be at least map_width/map_height \(400 m\)"):
+        split_params({**big, "memory_limit_mb": 20000, "max_map_extent": 300})
+
+
+def test_the_core_rules_default_to_the_node_defaults():
+    # the offline tool runs the frontend and the filter with their own defaults: the node's
+    from fastslam.filter.budget import MAX_BEAMS, MAX_MAP_EXTENT
+    from fastslam.filter.frontend import Frontend
+    from fastslam.filter.slam import FastSlam
+
+    node = NodeConfig()
+    front = Frontend(FastSlam(SlamConfig(particles=1)))
+    for key in ("odom_timeout", "odom_buffer", "max_odom_speed", "max_odom_jump", "reset_backwards", "max_beams"):
+        assert getattr(front, key) == getattr(node, key), key
+    assert (node.max_beams, node.max_map_extent, node.memory_limit_mb) == (MAX_BEAMS, MAX_MAP_EXTENT, 0.0)

@@ -119,13 +119,14 @@ def test_time_going_backwards_resets():
         f.add_odom(t, np.array([t, 0.0, 0.0]))
         f.add_scan(scan(t))
     assert f.slam.updates == 2
-    f.add_odom(0.5, np.array([0.0, 0.0, 0.0]))      # older than the buffer: ignored
-    with pytest.raises(Dropped):
-        f.add_scan(scan(0.5))                       # reset, then no odometry yet
-    assert f.events == [Reset(previous=2.0, stamp=0.5)] and f.slam.updates == 0
-    assert "time went backwards (2.00 -> 0.50 s)" in str(f.events[0])
-    f.add_odom(0.5, np.zeros(3))
-    assert f.add_scan(scan(0.5)).processed
+    f.add_odom(0.5, np.array([0.0, 0.0, 0.0]))      # 1.5 s older than the newest: the odometry restarted
+    assert f.add_scan(scan(0.5)).processed          # reset, then the new run's first update
+    reset, notice = f.events[1], f.events[0]
+    assert reset == Reset(previous=2.0, stamp=0.5) and f.slam.updates == 1
+    assert "time went backwards (2.00 -> 0.50 s)" in str(reset)
+    assert str(notice) == ("odometry stamped 1.50 s before the newest message (> reset_backwards 1 s): taken "
+                           "as a restart, the older odometry dropped")
+    assert f.counts == {"odometry restarted": 1}
 
 
 def test_drop_key_counts_reasons_with_different_values_as_one():
@@ -151,3 +152,117 @@ def test_a_scan_with_no_beam_in_the_field_of_view_is_dropped_with_the_reason():
     # the filter itself survives such a scan too (drivers that bypass the frontend)
     assert slam.step(np.zeros(3), rear).processed
     assert np.count_nonzero(slam.grid.logodds) == 0
+
+
+# -- issue 13 item 1: a slightly stale scan is out of order, not a restart ----------------
+
+def _mapped(f, times=(1.0, 2.0)):
+    for t in times:
+        f.add_odom(t, np.array([t, 0.0, 0.0]))
+        f.add_scan(scan(t))
+    return f
+
+
+def test_a_scan_slightly_older_than_the_previous_is_dropped_and_the_filter_kept():
+    saved = []
+    f = _mapped(front())
+    f.before_reset = saved.append
+    known = np.count_nonzero(f.slam.grid.logodds)
+    with pytest.raises(Dropped, match=r"scan stamped 0.001 s before the previous one \(out of order: within "
+                                      r"reset_backwards 1 s"):
+        f.add_scan(scan(1.999))
+    assert f.events == [] and saved == [] and f.resets == 0
+    assert f.slam.updates == 2 and np.count_nonzero(f.slam.grid.logodds) == known
+    f.add_odom(2.1, np.array([2.1, 0.0, 0.0]))
+    assert f.add_scan(scan(2.1)).processed and f.slam.updates == 3   # and it goes on
+
+
+def test_a_scan_more_than_reset_backwards_older_resets_after_the_map_was_looked_at():
+    seen = []
+    f = _mapped(front())
+    f.before_reset = lambda event: seen.append((event, f.slam.updates, np.count_nonzero(f.slam.grid.logodds)))
+    f.add_odom(0.9, np.zeros(3))                                  # 1.1 s back: the odometry restarted
+    assert f.add_scan(scan(0.9)).processed                        # 1.1 s back: a restart
+    (event, updates, known), = seen
+    assert event == Reset(previous=2.0, stamp=0.9) and updates == 2 and known > 0
+    assert f.events[-1] == event and f.resets == 1 and f.slam.updates == 1
+
+
+def test_the_tolerance_is_a_parameter():
+    f = _mapped(front())
+    f.reset_backwards = 0.0
+    with pytest.raises(Dropped, match="no odometry"):
+        f.add_scan(scan(1.999))                   # the odometry of the old run is not kept
+    assert isinstance(f.events[0], Reset) and f.resets == 1
+
+
+def test_odometry_of_a_restarted_run_replaces_the_old_and_a_late_old_message_heals():
+    # the clock went back 80 s; an old-run message arrives after the first new one
+    f = _mapped(front(), times=(180.0, 181.0))
+    f.restart()
+    f.add_odom(100.0, np.array([0.0, 0.0, 0.0]))
+    f.add_odom(181.1, np.array([181.1, 0.0, 0.0]))   # late, from the old run: 81 s "newer", 181 m away
+    f.add_odom(100.1, np.array([0.1, 0.0, 0.0]))     # 81 s older than that: the odometry restarted again
+    f.add_odom(100.2, np.array([0.2, 0.0, 0.0]))
+    assert f.add_scan(scan(100.2)).processed and f.slam.updates == 1
+    np.testing.assert_allclose(f.last_odom, [0.2, 0.0, 0.0])
+    assert f.counts["odometry restarted"] == 1 and f.counts["odometry kidnap"] == 1
+
+
+def test_the_clock_starting_again_resets_however_close_the_stamp():
+    seen = []
+    f = _mapped(front())
+    f.before_reset = seen.append
+    f.restart()                                     # e.g. /clock went back
+    f.add_odom(1.95, np.array([5.0, 0.0, 0.0]))     # the new run's odometry is kept
+    info = f.add_scan(scan(1.95))                   # 0.05 s back: within the tolerance, but a restart
+    assert seen == [Reset(previous=2.0, stamp=1.95, clock=True)] and f.events == seen
+    assert "the clock started again" in str(seen[0])
+    assert info.processed and f.slam.updates == 1 and f.resets == 1
+    np.testing.assert_allclose(f.last_odom, [5.0, 0.0, 0.0])
+
+
+def test_nothing_mapped_is_not_offered_before_a_reset():
+    seen = []
+    f = front()
+    f.before_reset = seen.append
+    f.add_odom(5.0, np.zeros(3))
+    with pytest.raises(Dropped):
+        f.add_scan(scan(0.5))        # no odometry at 0.5: dropped, no scan was seen before
+    f.restart()
+    f.add_odom(1.0, np.zeros(3))
+    f.add_scan(scan(1.0))
+    assert seen == [] and f.resets == 0
+
+
+# -- issue 13 item 3: at most max_beams beams per scan ---------------------------------------
+
+def test_a_scan_of_too_many_beams_is_evenly_subsampled_with_one_notice():
+    slam = FastSlam(SlamConfig(particles=2, seed=0, toggle_noise=0))
+    f = Frontend(slam, max_beams=4)
+    m = 10
+    angles = np.radians(np.arange(m) * 36.0 - 180.0)
+    seen = []
+    real = slam.step
+
+    def step(odom, s):
+        seen.append(s)
+        return real(odom, s)
+
+    slam.step = step
+    f.add_odom(1.0, np.zeros(3))
+    for t in (1.0, 1.1, 1.2):
+        f.add_scan(Scan(ranges=np.arange(m) + 1.0, angles=angles, range_min=0.1, range_max=20.0, stamp=t))
+    # beams 0, 2, 5, 7 of 10 (k * 10 // 4): spread over the whole sweep
+    for s in seen:
+        np.testing.assert_array_equal(s.ranges, [1.0, 3.0, 6.0, 8.0])
+        np.testing.assert_allclose(s.angles, angles[[0, 2, 5, 7]])
+    assert f.counts == {"scan beams subsampled": 3}
+    (notice,) = f.events
+    assert str(notice) == "scans of 10 beams (> max_beams 4) are evenly subsampled to 4 beams (said once)"
+
+
+def test_a_scan_of_max_beams_is_left_alone():
+    f = Frontend(FastSlam(SlamConfig(particles=2, seed=0)), max_beams=36)
+    f.add_odom(1.0, np.zeros(3))
+    assert f.add_scan(scan(1.0)).processed and f.counts == {} and f.events == []

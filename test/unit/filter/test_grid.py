@@ -165,3 +165,28 @@ def test_a_view_shares_one_particles_cells_and_the_flat_index_is_n_h_w():
     grid.logodds[1, 0, 0] = -3                     # later writes show through
     assert one.logodds[0, 0, 0] == -3
     assert grid.cells_flat()[(1 * 4 + 2) * 5 + 3] == 7 and one.cells_flat()[2 * 5 + 3] == 7
+
+
+# -- memory: what the maps hold and what a growth would allocate (the node's budget) ---------
+
+def test_bytes_of_the_maps_and_of_a_growth():
+    g = GridMaps(3, (20, 10), 0.5, (0.0, 0.0))
+    assert g.nbytes == 3 * 20 * 10 == GridMaps.bytes_for(3, (20, 10))
+    assert g.growth_bytes(1.0, 1.0, 4.0, 9.0) == 0            # covered: nothing to allocate
+    # 1 m past the right edge (x 5 -> 6): 2 cells + 1 (the edge cell), at least half of 10
+    assert g.grown_shape(0.0, 0.0, 6.0, 9.0) == (20, 15)
+    assert g.grown_shape(0.0, 0.0, 6.0, 9.0, fraction=0.0) == (20, 13)
+    assert g.growth_bytes(0.0, 0.0, 6.0, 9.0) == 3 * 20 * 15   # the whole new maps: the old ones go after the copy
+    g.grow_to(0.0, 0.0, 6.0, 9.0)
+    assert g.shape == (20, 15) and g.nbytes == 3 * 20 * 15
+
+
+def test_occupancy_of_int8_grids_by_table_equals_the_formula():
+    values = np.arange(-128, 128).astype(np.int8).reshape(16, 16)
+    for scale in (5 / 127, 0.3):
+        table = logodds_to_occupancy(values, scale)
+        formula = logodds_to_occupancy(values.astype(np.int16), scale)     # the float path
+        np.testing.assert_array_equal(table, formula)
+        assert table.dtype == np.int8 and table.shape == (16, 16)
+    strided = values[:, ::3]                                                # not contiguous
+    np.testing.assert_array_equal(logodds_to_occupancy(strided, 0.3), logodds_to_occupancy(values, 0.3)[:, ::3])

@@ -97,3 +97,23 @@ def test_short_histories(n_steps):
     for k in range(n_steps):
         h.append(7.0, poses_of_step(k, 2), np.arange(2))
     assert len(h) == n_steps and h.path(1).shape == (n_steps, 4)
+
+
+def test_a_path_from_a_row_on_and_the_settled_rows_never_change(monkeypatch):
+    # the node keeps what it made of the settled rows and asks only for the rest
+    monkeypatch.setattr(history_module, "PRUNE_EVERY", 4)
+    rng = np.random.default_rng(3)
+    h, steps, parents, kept = History(), [], [], []
+    for k in range(40):
+        parent = np.zeros(5, dtype=np.intp) if k % 7 == 0 else rng.integers(0, 5, 5).astype(np.intp)
+        steps.append(poses_of_step(k, 5))
+        parents.append(parent)
+        h.append(float(k), steps[-1], parent)
+        for j in range(5):
+            full = naive_path(steps, parents, j)
+            for start in (0, h.settled, h.settled + 1, len(full), len(full) + 3):
+                np.testing.assert_array_equal(h.path(j, start), full[start:])
+        kept.append((h.settled, h.path(0)[:h.settled].copy()))
+    assert kept[-1][0] > 20                                       # pruning settled most of the path
+    for settled, rows in kept:
+        np.testing.assert_array_equal(h.path(4)[:settled], rows)  # settled rows are every lineage's, for good

@@ -239,8 +239,10 @@ def test_each_versioned_save_leaves_one_yaml_and_the_one_image_it_names(tmp_path
         pgm, yml = save_map(tmp_path / "m", occ, 0.05, (1.0, 2.0, 0.0), versioned=True)
         assert yml == tmp_path / "m.yaml" and pgm.name == _image(yml)
         assert pgm.name.startswith("m.saved-") and pgm.suffix == ".pgm"
-        assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", pgm.name])
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", pgm.name, "m.pgm"])
         np.testing.assert_array_equal(load_map(yml)[0], occ)
+        # map_server's own file names keep working: m.pgm is the image the YAML names
+        assert (tmp_path / "m.pgm").read_bytes() == pgm.read_bytes()
 
 
 def test_a_save_failing_before_the_yaml_keeps_the_previous_pair(tmp_path, monkeypatch):
@@ -257,18 +259,56 @@ def test_a_save_failing_before_the_yaml_keeps_the_previous_pair(tmp_path, monkey
     with pytest.raises(MapSaveError, match="No space"):
         save_map(tmp_path / "m", np.zeros((2, 3), np.int8), 0.05, (0.0, 0.0, 0.0), versioned=True)
     assert (yml.read_text(), _image(yml)) == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", before[1]])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", before[1], "m.pgm"])
     np.testing.assert_array_equal(load_map(yml)[0], SAVED)
 
 
 def test_what_killed_saves_left_is_removed_and_the_map_kept(tmp_path):
     _, yml = save_map(tmp_path / "m", SAVED, 0.05, (0.0, 0.0, 0.0), versioned=True)
     kept = _image(yml)
-    leftovers = [".m.pgm.a1b2.tmp", ".m.yaml.c3d4.tmp", "m.saved-orphan.pgm"]
+    leftovers = [".m.pgm.a1b2.tmp", ".m.yaml.c3d4.tmp", "m.saved-orphan.pgm", ".m-20260101-120000.pgm.e5f6.tmp"]
     for name in leftovers:
         (tmp_path / name).write_bytes(b"x" * 100)
     (tmp_path / "m.old.pgm").write_bytes(b"a user's own file")     # not ours: kept
+    (tmp_path / ".m-notes.tmp").write_bytes(b"not a save of ours")  # no date after the stem: kept
     removed = remove_stale(tmp_path / "m")
     assert sorted(p.name for p in removed) == sorted(leftovers)
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", kept, "m.old.pgm"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", kept, "m.pgm", "m.old.pgm", ".m-notes.tmp"])
     np.testing.assert_array_equal(load_map(yml)[0], SAVED)
+
+
+def test_the_plain_image_is_a_copy_where_hard_links_fail(tmp_path, monkeypatch):
+    def no_links(src, dst):
+        raise OSError(1, "Operation not permitted")
+
+    monkeypatch.setattr(mapfile.os, "link", no_links)
+    pgm, yml = save_map(tmp_path / "m", SAVED, 0.05, (0.0, 0.0, 0.0), versioned=True)
+    assert (tmp_path / "m.pgm").read_bytes() == pgm.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["m.yaml", pgm.name, "m.pgm"])
+
+
+def test_a_save_killed_at_any_step_leaves_a_yaml_naming_a_matching_image(tmp_path, monkeypatch):
+    # the first save is the map in use; the second is killed before each of its renames
+    first = np.full((2, 3), 100, np.int8)
+    save_map(tmp_path / "m", first, 0.05, (0.0, 0.0, 0.0), versioned=True)
+    real = mapfile.os.replace
+    def killed_at(kill_at):
+        calls = []
+
+        def replace(src, dst):
+            calls.append(dst)
+            if len(calls) > kill_at:
+                raise KeyboardInterrupt   # stands for SIGKILL: nothing after runs
+            real(src, dst)
+        return replace
+
+    for kill_at in range(3):
+        monkeypatch.setattr(mapfile.os, "replace", killed_at(kill_at))
+        with pytest.raises(KeyboardInterrupt):
+            save_map(tmp_path / "m", np.zeros((4, 5), np.int8), 0.1, (1.0, 1.0, 0.0), versioned=True)
+        monkeypatch.setattr(mapfile.os, "replace", real)
+        occ, res, origin = load_map(tmp_path / "m.yaml")
+        assert (occ.shape, res, origin) in (((2, 3), 0.05, (0.0, 0.0, 0.0)), ((4, 5), 0.1, (1.0, 1.0, 0.0)))
+        remove_stale(tmp_path / "m")
+        assert not list(tmp_path.glob(".*.tmp"))
+        save_map(tmp_path / "m", first, 0.05, (0.0, 0.0, 0.0), versioned=True)

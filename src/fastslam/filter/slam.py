@@ -276,7 +276,7 @@ class FastSlam:
         if cfg.weight_model == "likelihood":
             if weigh:
                 sub = returns_subset(beams, cfg.match_beams)  # the matcher's end points
-                if cfg.match_weight != "normaliser":
+                if cfg.match_weight == "likelihood":
                     match = None
                 at = self.poses if match is None else np.where(match.trusted[:, None], match.poses, self.poses)
                 dist = endpoint_distances(self.grid, at, sub, max_dist=cfg.likelihood_max_dist)
@@ -286,7 +286,7 @@ class FastSlam:
                     # end points in known free space with no wall near: the scan contradicts the map there
                     wrong = (dist >= cfg.likelihood_max_dist) & sub.hit & self._in_free_space(sub, at)
                     log_w = log_w - cfg.likelihood_gain * cfg.likelihood_free * wrong.sum(axis=1)
-                if match is not None:   # the improved proposal: the likelihood at the match, times the prior's
+                if match is not None and cfg.match_weight == "normaliser":   # times the prior round the match
                     log_w = log_w + self._normaliser_terms(match, int(np.count_nonzero(sub.hit)))
             raycast.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
                                    groups=TRIM_GROUPS, free_step=cfg.free_beam_step)

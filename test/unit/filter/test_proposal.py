@@ -160,8 +160,31 @@ def test_normaliser_weight_charges_a_match_far_from_its_own_prediction(room_scan
     assert -4.5 <= weights[1][1] - weights[1][0] < -3.0
 
 
-def test_normaliser_weight_needs_the_icp_and_the_motion_prior():
+def test_match_weights_need_the_likelihood_and_the_normaliser_the_icp_and_the_motion_prior():
     with pytest.raises(ConfigError, match="match_weight=normaliser"):
         SlamConfig(**{**REAL, "match_refine": "hill"}, weight_model="likelihood", match_weight="normaliser")
     with pytest.raises(ConfigError, match="match_weight=normaliser"):
         SlamConfig(**{**REAL, "match_prior": "window"}, weight_model="likelihood", match_weight="normaliser")
+    with pytest.raises(ConfigError, match="match_weight=match needs weight_model=likelihood"):
+        SlamConfig(**REAL, weight_model="assignment", match_weight="match")
+
+
+def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_scan):
+    # Both particles match at the true pose; particle 1's sample round it landed 0.1 m
+    # off: weighed at the sample it loses, weighed at the match (gmapping's) it does not.
+    slam = _mapped(room_scan)
+    slam.grid.logodds[1] = slam.grid.logodds[0]
+    truth = np.array([0.05, 0.0, 0.4])
+    beams = select_beams(room_scan(truth, ANGLES), slam.cfg)
+    at_match = np.array([truth, truth])
+    match = Match(poses=at_match, trusted=np.ones(2, dtype=bool), score=np.ones(2))
+    weights = []
+    for mode in ("likelihood", "match"):
+        s = FastSlam(slam.cfg.replace(**REAL, match_weight=mode))
+        s.grid.logodds, s.grid.origin = slam.grid.logodds.copy(), slam.grid.origin
+        s.poses = at_match + [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]
+        s._match = match
+        s._observe(beams)
+        weights.append(s.log_w.copy())
+    assert weights[0][1] < weights[0][0] - 0.5
+    assert weights[1][0] == pytest.approx(weights[1][1], abs=1e-9)

@@ -8,7 +8,15 @@ import pytest
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, select_beams, spread_returns
 from fastslam.match.matcher import _icp
-from fastslam.match.refine import ICP_ITERATIONS, _bilinear_scores, hill_climb, icp, icp_fit, surface_normals
+from fastslam.match.refine import (
+    ICP_ITERATIONS,
+    _bilinear_scores,
+    hill_climb,
+    icp,
+    icp_fit,
+    prior_information,
+    surface_normals,
+)
 
 
 def _corridor_grid() -> GridMaps:
@@ -87,6 +95,18 @@ def test_icp_on_an_empty_map_goes_to_the_prior_and_returns_its_information():
     pose, info = icp(grid, np.array([[0.2, 0.1, 0.3]]), local, np.zeros((3, 2)), centre, spread)
     np.testing.assert_allclose(pose, centre, atol=1e-12)      # a quadratic: one Gauss-Newton step
     np.testing.assert_allclose(info[0], np.diag([400.0, 100.0, 25.0]), atol=1e-9)
+
+
+def test_prior_information_turns_with_the_heading_as_the_icp_prior_does():
+    # heading 90 degrees: along is y (1/0.05^2 = 400), across is x (1/0.1^2 = 100)
+    grid = GridMaps(2, (40, 40), 0.05, (-1.0, -1.0))
+    centre = np.array([[0.1, -0.1, np.pi / 2], [0.0, 0.0, np.pi / 6]])
+    spread = np.array([0.05, 0.1, 0.2])
+    got = prior_information(centre, spread)
+    np.testing.assert_allclose(got[0], np.diag([100.0, 400.0, 25.0]), atol=1e-9)
+    local = np.array([[0.5, 0.0], [0.0, 0.5]])
+    _, info = icp(grid, centre, local, np.zeros((2, 2)), centre, spread)   # empty maps: the prior alone
+    np.testing.assert_allclose(got, info, atol=1e-9)
 
 
 def test_normals_are_perpendicular_to_the_wall_and_missing_at_gaps():

@@ -1,9 +1,10 @@
 """`make bench [SUITE...]`: speed, memory and accuracy figures (recorded in docs/benchmarks.md).
 
-    PYTHONPATH=src:. python -m bench [speed] [intel] [office] [matcher] [longrun] [accuracy] [messages] [soak]
-    (default: all)
+    PYTHONPATH=src:. python -m bench [speed] [memory] [intel] [office] [matcher] [longrun] [accuracy] [messages]
+    [soak]   (default: all)
 
 speed: one filter step for N in {20, 50, 100}, 60 and 360 beams, 10 m and 40 m maps.
+memory: peak RSS for N in {30, 100, 300} on the Intel log and a 250 m building, tiles and dense.
 intel, office: the presets' accuracy (real and slam on Intel, burger and slam on the office; bench.modes).
 accuracy: config/real.yaml over the whole development set through the offline tool.
 matcher: the scan matcher alone against reference poses.
@@ -18,7 +19,7 @@ import argparse
 import importlib
 import sys
 
-SUITES = {"speed": ("bench.speed", []), "intel": ("bench.modes", []),
+SUITES = {"speed": ("bench.speed", []), "memory": ("bench.memory", ["--dense"]), "intel": ("bench.modes", []),
           "office": ("bench.modes", ["--office"]), "matcher": ("bench.matcher", None),
           "longrun": ("bench.longrun", []), "accuracy": ("bench.accuracy", []),
           "messages": ("bench.messages", []), "soak": ("bench.soak", [])}

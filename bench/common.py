@@ -9,8 +9,6 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable, TypeVar
 
-from tqdm import tqdm
-
 T = TypeVar("T")
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,4 +37,6 @@ def in_own_process(module: str, *args: Any) -> dict[str, Any]:
 
 def progress(items: Iterable[T], desc: str, total: int | None = None) -> Iterable[T]:
     """``items`` with a tqdm bar on stderr while they run (on a terminal only), cleared after."""
+    from tqdm import tqdm  # here: a case's own interpreter (its peak memory) has no bar to draw
+
     return tqdm(items, desc=desc, total=total, leave=False, disable=not sys.stderr.isatty(), file=sys.stderr)

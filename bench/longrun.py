@@ -40,7 +40,7 @@ def longrun_suite(minutes: float = 30.0, config: str = "config/slam.yaml") -> li
         h, w = slam.grid.shape
         row = {"sim_min": round(sim.time / 60), "updates": slam.updates,
                "ms_median": 1000 * float(np.median(window)), "ms_p95": 1000 * float(np.percentile(window, 95)),
-               "rss_mb": current_rss_mb(), "maps_mb": slam.grid.logodds.nbytes / 2**20, "grid": f"{h}x{w}"}
+               "rss_mb": current_rss_mb(), "maps_mb": slam.grid.nbytes / 2**20, "grid": f"{h}x{w}"}
         rows.append(row)
         window.clear()
         print(f"{row['sim_min']:>7} {row['updates']:>7} {row['ms_median']:>9.1f} {row['ms_p95']:>6.1f} "

@@ -51,7 +51,7 @@ def speed_case(particles: int, beams: int, size: float, steps: int = 25) -> dict
         slam.step(pose, scan)
         times.append(time.perf_counter() - t0)
     h, w = slam.grid.shape
-    maps_mb = slam.grid.logodds.nbytes / 2**20
+    maps_mb = slam.grid.nbytes / 2**20
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {"particles": particles, "beams": beams, "map_m": size, "cells": h * w,
             "median_ms": 1000 * float(np.median(times[3:])), "p95_ms": 1000 * float(np.percentile(times[3:], 95)),

@@ -38,7 +38,7 @@ def fingerprint(slam) -> dict:
     poses (N, 3) as nested lists."""
     h = hashlib.sha256()
     grid = slam.grid
-    for a in (np.stack([grid.logodds[i] for i in range(len(slam.poses))]),
+    for a in (np.stack([grid.particle_map(i) for i in range(len(slam.poses))]),
               np.asarray(grid.origin, dtype=np.float64).round(9)):
         a = np.ascontiguousarray(a)
         h.update(str((a.dtype.str, a.shape)).encode())

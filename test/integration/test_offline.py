@@ -7,6 +7,9 @@ import pytest
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
 from fastslam.eval.trajectory import interpolate_poses
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.slam import FastSlam
+from fastslam.filter.tiles import TileMaps
 from fastslam.geometry import relative
 from fastslam.io.bag_reader import read_bag
 from fastslam.io.bag_writer import write_bag
@@ -27,7 +30,8 @@ def test_bag_replay_equals_the_direct_run(tmp_path, repo_root):
     assert replay.updates == direct.updates == len(direct.scans) > 150
     # Headings pass through quaternions in the bag: equal to the last bit or two.
     np.testing.assert_allclose(replay.slam.trajectory(), direct.slam.trajectory(), rtol=0, atol=1e-9)
-    assert np.array_equal(replay.slam.grid.logodds, direct.slam.grid.logodds)
+    assert all(np.array_equal(replay.slam.grid.particle_map(i), direct.slam.grid.particle_map(i))
+               for i in range(direct.slam.grid.particles))
 
 
 def test_cli_writes_map_trajectory_and_stats(tmp_path, capsys, repo_root):
@@ -47,6 +51,26 @@ def test_cli_writes_map_trajectory_and_stats(tmp_path, capsys, repo_root):
     assert res == 0.05 and occ.shape == direct.slam.grid.shape
     assert (out / "map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "particles: 4" in (out / "config.yaml").read_text()
+
+
+def test_saved_maps_are_the_same_with_dense_and_tiled_storage(tmp_path, monkeypatch, repo_root):
+    # The tool's map files (map_server PGM + YAML, map.png) from the filter on shared
+    # tiles equal, byte for byte, those of the dense grids the filter used to keep.
+    cfg = SlamConfig.from_yaml(repo_root / "config" / "burger.yaml", {"seed": 0, "particles": 6})
+    direct = simrun.run("room", cfg, seed=0, record=True, max_time=30.0)
+    bag = tmp_path / "room.bag"
+    write_bag(bag, direct.scans, direct.odoms,
+              static_transforms=[StaticTransform.planar("base_footprint", "base_scan", x=-0.032)])
+    files = {}
+    for storage in (GridMaps, TileMaps):
+        monkeypatch.setattr(FastSlam, "maps_type", storage)
+        out = tmp_path / storage.__name__
+        assert offline.main([str(bag), "--out", str(out), "--config", str(repo_root / "config" / "burger.yaml"),
+                             "--set", "particles=6", "--seed", "0", "--quiet"]) == 0
+        files[storage] = {name: (out / name).read_bytes() for name in ("map.pgm", "map.yaml", "map.png")}
+    assert files[GridMaps] == files[TileMaps]
+    occ, res, origin = load_map(tmp_path / "TileMaps" / "map.yaml")
+    assert (occ != -1).sum() > 1000 and res == 0.05                      # a map, not an empty one
 
 
 def _sim_bag(tmp_path, seconds: float):

@@ -162,6 +162,15 @@ def test_a_copied_folder_holds_one_slam_py(user: Any, readme: SimpleNamespace) -
     assert res.returncode != 0 and "bad parameter: particles=0 must be in [1, 10000]" in res.stdout, res.stdout
 
 
+def intel_range(readme: SimpleNamespace, preset: str) -> tuple[float, float]:
+    """The README's Intel-log ATE range [m] for preset (its table "on the Intel log")."""
+    text = readme.path.read_text()
+    table = text[text.index("| preset | Intel log"):].split("\n\n")[0]
+    (row,) = [line for line in table.splitlines() if line.startswith(f"| `{preset}`")]
+    lo, hi = re.search(r"ATE ([0-9.]+)-([0-9.]+) m", row).groups()
+    return float(lo), float(hi)
+
+
 def test_record_replay_and_the_offline_tools(user: Any, readme: SimpleNamespace) -> None:
     rec = user.start(run_line(readme, "roslaunch assign5 burger.launch world:=room")
                      + " rviz:=false")
@@ -208,6 +217,10 @@ def test_record_replay_and_the_offline_tools(user: Any, readme: SimpleNamespace)
         assert (clone / made).is_file()
     evaluated = user.run(run_line(readme, "PYTHONPATH=src .venv/bin/python -m fastslam.evaluate"), cwd=clone, ros=False)
     assert evaluated.returncode == 0 and "ATE rmse [m]" in evaluated.stdout, evaluated.stdout
+    # the example (real, seed 0) lands in the range the README quotes for seeds 0-4
+    got = float(re.search(r"ATE rmse \[m\]\s+([0-9.]+)", evaluated.stdout).group(1))
+    lo, hi = intel_range(readme, "real")
+    assert lo <= got <= hi, (got, lo, hi)
 
     # the same tools from the catkin workspace
     res = user.run(run_line(readme, "rosrun assign5 evaluate.py"), cwd=clone)

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
-from fastslam.filter.grid import GridMaps, LogOddsSteps
+from fastslam.filter.grid import CellSpace, GridMaps, LogOddsSteps
 from fastslam.filter.scan import Beams
 from fastslam.filter.scratch import scratch
 
@@ -23,26 +23,30 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 
 
 CHUNK_ELEMENTS = 1 << 17  # samples per chunk: keeps temporaries small and in cache
-# The trimmed update (likelihood mode) is faster in larger chunks: fewer, longer passes.
-TRIM_CHUNK_ELEMENTS = 1 << 19
+SPACE_CELLS = 1 << 20     # cells of a space shared by consecutive chunks (see _spaces)
+# The trimmed update (likelihood mode) is faster in larger chunks (fewer, longer passes);
+# these keep its work arrays at a few MB (the Intel log in 66 MB, docs/benchmarks.md).
+TRIM_CHUNK_ELEMENTS = 3 << 16
 
 
 @dataclass
 class Rays:
     """The traced cells of M beams for n particles.
 
-    flat: (n, M, K) int32 (int64 for huge grids) index into logodds.reshape(-1); steps
-        past a beam's end continue along its line; -1 marks cells outside the grid
-        (only when `inside` is False).
+    flat: (n, M, K) int32 (int64 for huge grids) indices of the cells in space (see
+        CellSpace); steps past a beam's end continue along its line; -1 marks cells
+        outside the grid (only when `inside` is False).
     steps: (n, M) number of steps of each beam (its max-range end cell is that step).
     max_range: R, the length every beam was traced to [m].
     inside: every traced cell lies in the grid, so no -1 needs checking.
+    space: the cells the indices address.
     """
 
     flat: NDArray[np.integer[Any]]
     steps: NDArray[np.int64]
     max_range: float
     inside: bool
+    space: CellSpace
 
     def step_of_range(self, ranges: NDArray[np.float64]) -> NDArray[np.int64]:
         """(n, M) step at which a range (M,) or (n, M) ends, clipped to the beam."""
@@ -57,7 +61,8 @@ class Rays:
         return np.ceil(distance / self.max_range * self.steps).astype(np.int64)
 
 
-def _step_of_range(steps: NDArray[np.int64], max_range: float, ranges: NDArray[np.float64]) -> NDArray[np.int64]:
+def _step_of_range(steps: NDArray[np.int64], max_range: float | NDArray[np.float64],
+                   ranges: NDArray[np.float64]) -> NDArray[np.int64]:
     k = np.rint(np.asarray(ranges) / max_range * steps)
     return np.minimum(k, steps).astype(np.int64)
 
@@ -70,8 +75,9 @@ class _Lines:
     start: NDArray[np.int64]      # (n, 2) cell of each origin
     steps: NDArray[np.int64]      # (n, M)
     slope: NDArray[np.float32]    # (n, M, 2)
-    base: NDArray[np.integer[Any]]     # (n,) flat index of each start cell
     shape: tuple[int, int]        # (H, W) of the grid
+    base: NDArray[np.integer[Any]] | None = None   # (n,) index of each start cell in space
+    space: CellSpace | None = None
 
     @property
     def k_max(self) -> int:
@@ -89,12 +95,26 @@ class _Lines:
     def beams(self, sel: slice) -> _Lines:
         """The lines of the beams sel."""
         return _Lines(start=self.start, steps=self.steps[:, sel], slope=self.slope[:, sel],
-                      base=self.base, shape=self.shape)
+                      shape=self.shape, base=self.base, space=self.space)
+
+    def box(self) -> tuple[tuple[int, int], tuple[int, int]]:
+        """Cell bounds lo <= (ix, iy) < hi of every traced cell inside the grid."""
+        k, (h, w) = self.k_max, self.shape
+        lo = np.maximum(self.start.min(axis=0) - k, 0)
+        hi = np.minimum(self.start.max(axis=0) + k + 1, (w, h))
+        return (int(lo[0]), int(lo[1])), (int(hi[0]), int(hi[1]))
+
+    def in_space(self, space: CellSpace, first: int = 0) -> _Lines:
+        """The same lines with the indices of their start cells in space (the lines'
+        particles being the space's first .. first + n - 1)."""
+        base = space.base(first + np.arange(len(self.start)), self.start[:, 1], self.start[:, 0])
+        return _Lines(start=self.start, steps=self.steps, slope=self.slope, shape=self.shape, base=base,
+                      space=space)
 
 
 def _lines(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
-           max_range: float | NDArray[np.float64], first: int) -> _Lines:
-    """The lines of trace; max_range: one length, or one per beam (M,)."""
+           max_range: float | NDArray[np.float64]) -> _Lines:
+    """The lines of trace, not yet in a space; max_range: one length, or one per beam (M,)."""
     n_p, m = angles.shape
     h, w = grid.shape
     start = grid.world_to_cell(origins)                                   # (n, 2)
@@ -109,9 +129,7 @@ def _lines(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.floa
     slope = np.empty((n_p, m, 2), dtype=np.float32)
     np.divide(dx, div, out=slope[..., 0], casting="unsafe")  # float64 quotient, then float32
     np.divide(dy, div, out=slope[..., 1], casting="unsafe")
-    index_type = np.int32 if grid.logodds.size < np.iinfo(np.int32).max else np.int64
-    base: NDArray[np.integer[Any]] = (((first + np.arange(n_p)) * h + start[:, 1]) * w + start[:, 0]).astype(index_type)
-    return _Lines(start=start, steps=steps, slope=slope, base=base, shape=(h, w))
+    return _Lines(start=start, steps=steps, slope=slope, shape=(h, w))
 
 
 def _to_cell(v: NDArray[np.float64], origin: float, resolution: float) -> NDArray[np.int64]:
@@ -120,7 +138,9 @@ def _to_cell(v: NDArray[np.float64], origin: float, resolution: float) -> NDArra
 
 
 def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer[Any]]) -> NDArray[np.integer[Any]]:
-    """out (n, M, K): flat index of every step of lines that lie inside the grid."""
+    """out (n, M, K): index of every step of lines that lie inside the grid (w: the
+    space's stride)."""
+    assert lines.base is not None
     k = np.arange(out.shape[2], dtype=np.float32)
     fx = np.multiply(lines.slope[..., 0, None], k, out=scratch("raycast_fx", out.shape, np.float32))
     np.rint(fx, out=fx)
@@ -133,34 +153,49 @@ def _flat_inside(lines: _Lines, w: int, out: NDArray[np.integer[Any]]) -> NDArra
     return out
 
 
-def trace(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
+def trace(grid: GridMaps | CellSpace, origins: NDArray[np.float64], angles: NDArray[np.float64],
           max_range: float, first: int = 0) -> Rays:
     """Cells along each beam.
 
     Args:
-        grid: the particles' maps (geometry only is read).
+        grid: the particles' maps, or the space of them to address (a GridMaps gives
+            the space of the cells these beams reach: close() rays.space after writing).
         origins: (n, 2) beam origins in the map frame [m].
         angles: (n, M) beam directions in the map frame [rad].
         max_range: beam length [m].
-        first: the particles traced are first .. first + n - 1.
+        first: the particles traced are first .. first + n - 1 (with a GridMaps).
     """
-    h, w = grid.shape
-    lines = _lines(grid, origins, angles, max_range, first)
+    maps = grid.grid if isinstance(grid, CellSpace) else grid
+    lines = _lines(maps, origins, angles, max_range)
+    if isinstance(grid, CellSpace):
+        space = grid
+    else:
+        lo, hi = lines.box()
+        space = grid.cells(first, first + len(origins), lo, hi, traced=lines.steps.size * lines.k_max)
+    return _trace(lines.in_space(space), float(max_range))
+
+
+def _trace(lines: _Lines, max_range: float) -> Rays:
+    """Cells along each beam of lines (in their space), every beam max_range long."""
+    assert lines.base is not None and lines.space is not None
+    space = lines.space
+    h, w = lines.shape
     start, slope, base, steps = lines.start, lines.slope, lines.base, lines.steps
     index_type = base.dtype
+    stride = space.stride
     k = np.arange(lines.k_max, dtype=np.float32)
     if lines.inside:
-        flat = _flat_inside(lines, w, np.empty(steps.shape + (len(k),), dtype=index_type))
-        return Rays(flat=flat, steps=steps, max_range=float(max_range), inside=True)
+        flat = _flat_inside(lines, stride, np.empty(steps.shape + (len(k),), dtype=index_type))
+        return Rays(flat=flat, steps=steps, max_range=max_range, inside=True, space=space)
     fx = np.multiply(slope[..., 0, None], k)                              # (n, M, K) float32
     np.rint(fx, out=fx)
     fy = np.multiply(slope[..., 1, None], k)
     np.rint(fy, out=fy)
     ix = start[:, 0, None, None] + fx.astype(index_type)
     iy = start[:, 1, None, None] + fy.astype(index_type)
-    flat = base[:, None, None] + (ix - start[:, 0, None, None]) + (iy - start[:, 1, None, None]) * w
+    flat = base[:, None, None] + (ix - start[:, 0, None, None]) + (iy - start[:, 1, None, None]) * stride
     flat[(ix < 0) | (ix >= w) | (iy < 0) | (iy >= h)] = -1
-    return Rays(flat=flat.astype(index_type), steps=steps, max_range=float(max_range), inside=False)
+    return Rays(flat=flat.astype(index_type), steps=steps, max_range=max_range, inside=False, space=space)
 
 
 def expected_ranges(grid: GridMaps, rays: Rays, min_range: float = 0.0) -> NDArray[np.float64]:
@@ -168,14 +203,16 @@ def expected_ranges(grid: GridMaps, rays: Rays, min_range: float = 0.0) -> NDArr
 
     Cells nearer than min_range (on the shortest beam's count of steps) are not looked
     at: the sensor cannot see them. A beam that meets nothing returns max_range.
+    The cells are read through rays.space (grid: the same maps).
     """
-    cells = grid.logodds.reshape(-1)
+    space = rays.space
+    cells = space.values
     k0 = int(rays.first_step_at(min_range).min()) if min_range > 0 else 0
     flat = rays.flat[..., k0:]
     if rays.inside:
-        occupied = cells.take(flat) > 0
+        occupied = cells.take(space.resolve(flat)) > 0
     else:
-        occupied = (cells.take(np.maximum(flat, 0)) > 0) & (flat >= 0)
+        occupied = (cells.take(space.resolve(np.maximum(flat, 0))) > 0) & (flat >= 0)
     first = occupied.argmax(axis=2)
     hit = np.take_along_axis(occupied, first[..., None], axis=2)[..., 0]
     return np.where(hit, rays.range_of_step(first + k0), rays.max_range)
@@ -193,7 +230,7 @@ def update_logodds(grid: GridMaps, rays: Rays, free_until: NDArray[np.int64],
         steps: increments and clamps in the grid's int8 units.
     """
     free, hit = _cells_to_update(rays, free_until, hit_step, first_step)
-    _apply(grid, free, hit, steps)
+    _apply(rays.space, free, hit, steps)
 
 
 def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArray[np.int64],
@@ -205,9 +242,12 @@ def _cells_to_update(rays: Rays, free_until: NDArray[np.int64], hit_step: NDArra
     return free, hit[has_hit & (hit >= 0)]
 
 
-def _apply(grid: GridMaps, free: NDArray[np.integer[Any]], hit: NDArray[np.integer[Any]], steps: LogOddsSteps) -> None:
+def _apply(space: CellSpace, free: NDArray[np.integer[Any]], hit: NDArray[np.integer[Any]],
+           steps: LogOddsSteps) -> None:
+    """One scan's update of the cells free (repeats allowed) and hit of space."""
     l_free, l_occ, l_min, l_max = steps
-    cells = grid.logodds.reshape(-1)
+    free, hit = space.writable(free), space.writable(hit)
+    cells = space.values
     lo, hi = np.iinfo(cells.dtype).min, np.iinfo(cells.dtype).max
     if l_free <= 0 <= l_occ and l_min <= l_max and lo <= l_min - l_free <= hi and lo <= l_max - l_occ <= hi:
         # The same sums and clamps in int8 without overflow: clamp first, then add.
@@ -260,55 +300,71 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
         marked = np.flatnonzero(hit & ~traced)
         order = order[traced[order]]
     parts = [p for p in np.array_split(order, min(groups, len(order))) if len(p)]
-    k_mean = float(np.mean(reach[order])) / grid.resolution + 2
-    per_chunk = max(1, int(TRIM_CHUNK_ELEMENTS // (len(order) * k_mean)))
+    cols = np.concatenate(parts)
+    # each beam traced to its group's length (all groups at once: fewer, small, numpy calls)
+    r = np.concatenate([np.full(len(sel), float(min(reach[sel].max(), max_range)) + grid.resolution)
+                        for sel in parts])
+    # a chunk's work arrays: the cells of its longest group, and the cells it frees (about)
+    longest = max(len(sel) * (int(float(r[i]) / grid.resolution) + 2)
+                  for i, sel in zip(np.cumsum([0] + [len(sel) for sel in parts])[:-1], parts))
+    per_particle = max(longest, int(len(order) * (float(np.mean(reach[order])) / grid.resolution + 2)))
+    per_chunk = max(1, TRIM_CHUNK_ELEMENTS // per_particle)
+    h, w = grid.shape
     for a in range(0, n_p, per_chunk):
         b = min(n_p, a + per_chunk)
-        free_cells, hit_cells = _group_cells(grid, origins[a:b], angles[a:b], parts, reach, ranges, hit,
-                                             free_range, max_range=max_range, range_min=range_min, first=a)
+        lines = _lines(grid, origins[a:b], angles[a:b][:, cols], r)
+        lo, hi = lines.box()
+        marked_cells = np.zeros((b - a, 0, 2), dtype=np.int64)
+        ok = np.zeros((b - a, 0), dtype=bool)
         if len(marked):
             a_m = angles[a:b][:, marked]
             ends = origins[a:b, None, :] + ranges[marked, None] * np.stack([np.cos(a_m), np.sin(a_m)], -1)
-            cell = grid.world_to_cell(ends)                                   # (n, K, 2)
-            h_, w_ = grid.shape
-            ok = (cell[..., 0] >= 0) & (cell[..., 0] < w_) & (cell[..., 1] >= 0) & (cell[..., 1] < h_)
-            flat = ((np.arange(a, b)[:, None] * h_ + cell[..., 1]) * w_ + cell[..., 0])[ok]
-            hit_cells.append(flat)
-        _apply(grid, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), steps)
+            marked_cells = grid.world_to_cell(ends)                           # (n, K, 2)
+            ok = ((marked_cells[..., 0] >= 0) & (marked_cells[..., 0] < w) & (marked_cells[..., 1] >= 0)
+                  & (marked_cells[..., 1] < h))
+            if ok.any():
+                inside = marked_cells[ok]
+                lo = (min(lo[0], int(inside[:, 0].min())), min(lo[1], int(inside[:, 1].min())))
+                hi = (max(hi[0], int(inside[:, 0].max()) + 1), max(hi[1], int(inside[:, 1].max()) + 1))
+        space = grid.cells(a, b, lo, hi, traced=per_particle * (b - a))
+        free_cells, hit_cells = _group_cells(lines.in_space(space), parts, r, ranges[cols], hit[cols],
+                                             free_range[cols], range_min=range_min)
+        if ok.any():
+            i = np.broadcast_to(np.arange(b - a)[:, None], ok.shape)[ok]
+            hit_cells.append(space.base(i, marked_cells[ok][:, 1], marked_cells[ok][:, 0]))
+        _apply(space, free_cells, np.concatenate(hit_cells) if hit_cells else np.zeros(0, np.int64), steps)
+        space.close()
 
 
-def _group_cells(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
-                 parts: list[NDArray[np.intp]], reach: NDArray[np.float64], ranges: NDArray[np.float64],
-                 hit: NDArray[np.bool_], free_range: NDArray[np.float64], *, max_range: float,
-                 range_min: float, first: int) -> tuple[NDArray[np.intp], list[NDArray[np.integer[Any]]]]:
+def _group_cells(lines: _Lines, parts: list[NDArray[np.intp]], r: NDArray[np.float64],
+                 ranges: NDArray[np.float64], hit: NDArray[np.bool_], free_range: NDArray[np.float64], *,
+                 range_min: float) -> tuple[NDArray[np.intp], list[NDArray[np.integer[Any]]]]:
     """The cells to free (one intp array, repeats allowed) and the hit cells (per group)
-    of the beam groups `parts` for particles first .. first + n - 1."""
-    # All groups at once, each beam with its group's length: the same values as group
-    # by group, in fewer (small) numpy calls.
-    cols = np.concatenate(parts)
-    r = np.concatenate([np.full(len(sel), float(min(reach[sel].max(), max_range)) + grid.resolution)
-                        for sel in parts])
-    lines = _lines(grid, origins, angles[:, cols], r, first)
-    hit_step = np.where(hit[cols], _step_of_range(lines.steps, r, ranges[cols]), -1)
-    until = np.where(hit[cols], hit_step, _step_of_range(lines.steps, r, free_range[cols]) + 1)
+    of the beams of lines (the groups `parts` one after the other, traced r long; ranges,
+    hit, free_range in the same order)."""
+    assert lines.base is not None and lines.space is not None
+    hit_step = np.where(hit, _step_of_range(lines.steps, r, ranges), -1)
+    until = np.where(hit, hit_step, _step_of_range(lines.steps, r, free_range) + 1)
     first_step = np.ceil(range_min / r * lines.steps).astype(np.int64)
     bounds = np.cumsum([0] + [len(sel) for sel in parts])
     groups = [lines.beams(slice(i, j)) for i, j in zip(bounds[:-1], bounds[1:])]
     free, hit_cells = [], []
-    for i, (ln, sel) in enumerate(zip(groups, parts)):
+    for i, ln in enumerate(groups):
         g = slice(bounds[i], bounds[i + 1])
         if ln.inside:
-            flat = _flat_inside(ln, grid.shape[1], scratch("raycast_flat", ln.steps.shape + (ln.k_max,), ln.base.dtype))
+            assert ln.base is not None
+            flat = _flat_inside(ln, lines.space.stride,
+                                scratch("raycast_flat", ln.steps.shape + (ln.k_max,), ln.base.dtype))
             free.append(_free_of(flat, until[:, g], first_step[:, g]))
             cells = np.take_along_axis(flat, np.maximum(hit_step[:, g], 0)[..., None], axis=2)[..., 0]
             hit_cells.append(cells[hit_step[:, g] >= 0])
         else:
-            rays = trace(grid, origins, angles[:, sel], float(r[bounds[i]]), first=first)
+            rays = _trace(ln, float(r[bounds[i]]))
             f, h = _cells_to_update(rays, until[:, g], hit_step[:, g], first_step[:, g])
             free.append(f)
             hit_cells.append(h)
-    # _apply indexes faster with intp; the narrow type made the passes above cheaper.
-    out = scratch("raycast_free", (sum(len(f) for f in free),), np.intp)
+    # _apply indexes faster with intp (space.write_type); the narrow type made the passes above cheaper.
+    out = scratch("raycast_free", (sum(len(f) for f in free),), lines.space.write_type)
     return np.concatenate(free, out=out), hit_cells
 
 
@@ -355,13 +411,51 @@ def observe(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.flo
     k_guess = int(max_range / grid.resolution) + 2
     per_chunk = max(1, CHUNK_ELEMENTS // (m * k_guess))
     out = np.empty((n_p, m)) if expected else None
-    for a in range(0, n_p, per_chunk):
-        b = min(n_p, a + per_chunk)
-        rays = trace(grid, origins[a:b], angles[a:b], max_range, first=a)
-        if out is not None:
-            out[a:b] = expected_ranges(grid, rays, range_min)
-        hit_step = np.where(hit, rays.step_of_range(ranges), -1)
-        until = np.where(hit, hit_step, rays.step_of_range(free_range) + 1)
-        until = np.where(free_range > 0, until, 0)
-        update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min), steps=steps)
+    for group in _spaces(grid, [(a, min(n_p, a + per_chunk)) for a in range(0, n_p, per_chunk)],
+                         lambda a, b: _lines(grid, origins[a:b], angles[a:b], max_range)):
+        for a, b, lines in group.chunks:
+            rays = _trace(lines, max_range)
+            if out is not None:
+                out[a:b] = expected_ranges(grid, rays, range_min)
+            hit_step = np.where(hit, rays.step_of_range(ranges), -1)
+            until = np.where(hit, hit_step, rays.step_of_range(free_range) + 1)
+            until = np.where(free_range > 0, until, 0)
+            update_logodds(grid, rays, until, hit_step, first_step=rays.first_step_at(range_min), steps=steps)
+        group.space.close()
     return out
+
+
+@dataclass
+class _Group:
+    """Chunks of particles (first, stop, their lines in space) sharing one space."""
+
+    space: CellSpace
+    chunks: list[tuple[int, int, _Lines]]
+
+
+def _spaces(grid: GridMaps, chunks: list[tuple[int, int]], lines_of: Callable[[int, int], _Lines],
+            cells: int = SPACE_CELLS) -> Iterator[_Group]:
+    """The chunks (first, stop) in groups, each with the space of the cells their lines
+    reach: consecutive chunks share one while its box holds at most `cells` cells (a
+    space costs some calls to open and close: fewer, larger ones for many small chunks)."""
+    h, w = grid.shape
+    i = 0
+    while i < len(chunks):
+        first = chunks[i][0]
+        members: list[tuple[int, int, _Lines]] = []
+        lo, hi = (w, h), (0, 0)
+        traced = 0
+        while i < len(chunks):
+            a, b = chunks[i]
+            lines = lines_of(a, b)
+            l_lo, l_hi = lines.box()
+            n_lo = (min(lo[0], l_lo[0]), min(lo[1], l_lo[1]))
+            n_hi = (max(hi[0], l_hi[0]), max(hi[1], l_hi[1]))
+            if members and (b - first) * (n_hi[0] - n_lo[0]) * (n_hi[1] - n_lo[1]) > cells:
+                break
+            members.append((a, b, lines))
+            lo, hi, traced = n_lo, n_hi, traced + lines.steps.size * lines.k_max
+            i += 1
+        stop = members[-1][1]
+        space = grid.cells(first, stop, lo, hi, traced=traced)
+        yield _Group(space, [(a, b, ln.in_space(space, a - first)) for a, b, ln in members])

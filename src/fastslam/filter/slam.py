@@ -22,6 +22,7 @@ from fastslam.filter.motion import odometry_std, sample_motion_assignment, sampl
 from fastslam.filter.proposal import gate_match, match_request, motion_spread, normaliser_log_terms
 from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
+from fastslam.filter.tiles import TileMaps
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, relative, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses, refine_poses
@@ -58,6 +59,8 @@ class StepInfo:
 class FastSlam:
     """The particle set: poses (N, 3), log-weights (N,), maps (N, H, W), trajectories."""
 
+    maps_type: type[GridMaps] = TileMaps   # the maps' storage: shared copy-on-write tiles (GridMaps: dense)
+
     def __init__(self, cfg: SlamConfig, rng: np.random.Generator | None = None, *,
                  limits: Limits | None = None) -> None:
         self.cfg = cfg
@@ -71,7 +74,7 @@ class FastSlam:
         cfg = self.cfg
         n = cfg.particles
         h, w = cfg.grid_shape
-        self.grid = GridMaps(n, (h, w), cfg.map_resolution,
+        self.grid = self.maps_type(n, (h, w), cfg.map_resolution,
                              (-w * cfg.map_resolution / 2, -h * cfg.map_resolution / 2),
                              l_limit=max(-cfg.l_min, cfg.l_max))
         self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)
@@ -321,8 +324,8 @@ class FastSlam:
         ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
         iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
         inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-        flat = (np.arange(len(poses))[:, None] * h + np.clip(iy, 0, h - 1)) * w + np.clip(ix, 0, w - 1)
-        return inside & (grid.logodds.reshape(-1).take(flat) < 0)
+        cells = grid.values(np.arange(len(poses))[:, None], np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1))
+        return inside & (cells < 0)
 
     def _resample(self, w: NDArray[np.float64], n_eff: float) -> tuple[bool, NDArray[np.intp]]:
         """Low-variance resampling when due; returns whether, and each slot's parent slot."""

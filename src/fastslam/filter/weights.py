@@ -85,15 +85,13 @@ def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams,
     fy = (v - iy - 0.5).astype(np.float32)
     if ix.min() - r >= 0 and iy.min() - r >= 0 and ix.max() + r < w and iy.max() + r < h:
         # Every searched cell is inside (the usual case): no bounds to check.
-        base = (np.arange(n)[:, None] * h + iy) * w + ix        # (N, S)
-        flat = base[..., None] + (oy * w + ox)                  # (N, S, O)
-        occupied = grid.logodds.reshape(-1).take(flat) > 0
+        occupied = np.moveaxis(grid.values_around(np.arange(n)[:, None], iy, ix, oy, ox) > 0, 0, -1)  # (N, S, O)
     else:
         cx = ix[..., None] + ox                                 # (N, S, O)
         cy = iy[..., None] + oy
         inside = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
-        flat = (np.arange(n)[:, None, None] * h + np.clip(cy, 0, h - 1)) * w + np.clip(cx, 0, w - 1)
-        occupied = (grid.logodds.reshape(-1).take(flat) > 0) & inside
+        cells = grid.values(np.arange(n)[:, None, None], np.clip(cy, 0, h - 1), np.clip(cx, 0, w - 1))
+        occupied = (cells > 0) & inside
     # Distances to the occupied cells only (few of them), the least per end point by
     # a reduction over runs: the same float64 values as over the full (N, S, O) array.
     found = np.flatnonzero(occupied)

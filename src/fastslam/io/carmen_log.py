@@ -108,6 +108,11 @@ class CarmenLog:
         return self.front_laser_offset, 0.0, 0.0
 
 
+def open_log(path: str | os.PathLike[str]) -> IO[str]:
+    """The log's text (gzip detected by content), for iter_log: a log read line by line."""
+    return _open_text(Path(path))
+
+
 def _open_text(path: Path) -> IO[str]:
     with path.open("rb") as f:
         gz = f.read(2) == b"\x1f\x8b"  # gzip magic, whatever the file is called

@@ -34,7 +34,7 @@ from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
 from fastslam.match.refine import hill_climb, icp_fit, prior_information, surface_normals
-from fastslam.match.search import POOL, grid_search, pick, pool_occupied, pool_signed, search_area, window
+from fastslam.match.search import POOL, POOL_CELLS, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -44,6 +44,7 @@ MIN_BEAMS = 10         # fewer returns than this: nothing to match
 # The motion prior never gets narrower than this: odometry of a standing robot still
 # errs by about half a cell, and the heading by a few tenths of a degree.
 PRIOR_FLOOR = np.array([0.025, 0.025, 0.01])    # along, across [m], heading [rad]
+MATCH_BYTES = 3 << 20   # pooled maps of one chunk of particles (see match_poses)
 
 
 @dataclass(frozen=True)
@@ -114,15 +115,42 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     x0, y0, x1, y1 = search_area(grid, poses, local, ka * dth, k0 * coarse, window(grid, poses, reach))
     if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
         return nothing
-    pool = pool_signed if params.free_space else pool_occupied
-    half, quarter = pool(grid.logodds[:, y0:y1, x0:x1])           # 2x2, 4x4 cells: occupied if any is
-    known = np.count_nonzero(quarter > 0, axis=(1, 2))             # (N,) occupied 4x4 blocks in reach
-    w_origin = grid.origin + np.array([x0, y0]) * res
     if prior is None:
         centre = poses
         spread = np.array([params.xy_range, params.xy_range, params.theta_range]) / 2
     else:
         centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
+    icp_points = None   # (end points, surface normals) for ICP: its own, more, returns if asked
+    if params.refine == "icp":
+        fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
+        icp_points = (end_points(beams, fine), surface_normals(beams, fine))
+    # Particles in chunks whose pooled maps stay within MATCH_BYTES: a window across a
+    # large building would otherwise take tens of MB.
+    size = max(1, MATCH_BYTES // ((x1 - x0) * (y1 - y0) * 5 // 16))     # pooled maps (half, quarter) per particle
+    found = [_match_some(grid.view(a, min(n, a + size)), poses[a:a + size], centre[a:a + size], spread, local,
+                         icp_points, (x0, y0, x1, y1), k0, ka, dth, params)
+             for a in range(0, n, size)]
+    pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
+    cov = None if found[0][2] is None else np.concatenate([f[2] for f in found])
+    info = None if found[0][4] is None else np.concatenate([f[4] for f in found])
+    return Match(poses=pose, trusted=trusted, covariance=cov, score=score, scan_information=info,
+                 icp_points=0 if icp_points is None else len(icp_points[0]))
+
+
+def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.float64], spread: NDArray[np.float64],
+                local: NDArray[np.float64], icp_points: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+                box: tuple[int, int, int, int],
+                k0: int, ka: int, dth: float, params: MatchParams
+                ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.float64],
+                           NDArray[np.float64] | None]:
+    """match_poses for the particles of grid (a view): (poses, trusted, covariance, score,
+    scan information: the ICP's Hessian less the prior, or None)."""
+    res = grid.resolution
+    coarse = POOL * res
+    x0, y0, _, _ = box
+    half, quarter = _pooled(grid, box, params.free_space)          # 2x2, 4x4 cells: occupied if any is
+    known = np.count_nonzero(quarter > 0, axis=(1, 2))             # (N,) occupied 4x4 blocks in reach
+    w_origin = grid.origin + np.array([x0, y0]) * res
     m = len(local)
     # 1. coarse: wide window on 4x4 cells
     turns = np.arange(-ka, ka + 1) * dth
@@ -133,15 +161,12 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     pose = pick(grid_search(half, w_origin, 2 * res, pose, turns, local, 2, flags=True),
                 pose, turns, 2, 2 * res, centre, spread, m)
     turns = np.array([-0.25, 0.0, 0.25]) * dth
-    scores = grid_search(grid.logodds, grid.origin, res, pose, turns, local, 1)
+    scores = grid_search(grid, grid.origin, res, pose, turns, local, 1)
     pose = pick(scores, pose, turns, 1, res, centre, spread, m)
     # 3. finer than a cell
     cov = scan_info = None
-    fine = sel
-    if params.refine == "icp":
-        fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
-        pose, info = _icp(grid, pose, end_points(beams, fine), surface_normals(beams, fine), centre, spread,
-                          params.icp_from_prior)
+    if icp_points is not None:
+        pose, info = _icp(grid, pose, icp_points[0], icp_points[1], centre, spread, params.icp_from_prior)
         scan_info = info - prior_information(centre, spread)
         if params.covariance:
             cov = inv3(info)
@@ -152,8 +177,22 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     trusted = (score >= params.min_score) & (known >= params.min_known)
     if params.free_space:
         trusted &= (flags < 0).mean(axis=1) <= params.max_free
-    return Match(poses=pose, trusted=trusted, covariance=cov, score=score, scan_information=scan_info,
-                 icp_points=len(fine) if scan_info is not None else 0)
+    return pose, trusted, cov, score, scan_info
+
+
+def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+    """The maps' cells x0 <= ix < x1, y0 <= iy < y1 pooled to 2x2 and 4x4 cells
+    (pool_signed or pool_occupied), a few maps at a time (their crops stay small)."""
+    x0, y0, x1, y1 = box
+    n = grid.particles
+    pool = pool_signed if signed else pool_occupied
+    half = np.empty((n, (y1 - y0) // 2, (x1 - x0) // 2), dtype=np.int8)
+    quarter = np.empty((n, (y1 - y0) // 4, (x1 - x0) // 4), dtype=np.int8)
+    maps = max(1, POOL_CELLS // ((y1 - y0) * (x1 - x0)))
+    for a in range(0, n, maps):
+        b = min(n, a + maps)
+        half[a:b], quarter[a:b] = pool(grid.crop(y0, y1, x0, x1, a, b))
+    return half, quarter
 
 
 def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
@@ -228,13 +267,10 @@ def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArra
     iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
     inside = (ix >= 1) & (ix < w - 1) & (iy >= 1) & (iy < h - 1)
     maps = np.arange(len(pose)).reshape((-1,) + (1,) * (x.ndim - 1))
-    base = (maps * h + np.clip(iy, 1, h - 2)) * w + np.clip(ix, 1, w - 2)
-    cells = grid.cells_flat()
-    near = np.zeros(base.shape, dtype=bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            near |= cells.take(base + (dy * w + dx)) > 0
-    free = inside & ~near & (cells.take(base) < 0)
+    d = np.array([-1, 0, 1])
+    cells = grid.values_around(maps, np.clip(iy, 1, h - 2), np.clip(ix, 1, w - 2), np.repeat(d, 3), np.tile(d, 3))
+    near = (cells > 0).any(axis=0)                                     # the 3 x 3 cells, first axis
+    free = inside & ~near & (cells[4] < 0)                             # the end point's own cell
     return inside & near, free
 
 

@@ -20,20 +20,20 @@ ICP_ITERATIONS = 3
 ICP_RADIUS = 2         # cells searched around each end point for occupied ones
 ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
 ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
-SMALL_GATHER = 20000   # kernel cells up to which ICP gathers them in one call
 NORMAL_GAP = 0.3       # [m] neighbouring returns farther apart give no surface normal
 
 
-def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
-                     cand: NDArray[np.float64], local: NDArray[np.float64]) -> NDArray[np.float64]:
+def _bilinear_scores(grid: GridMaps, cand: NDArray[np.float64], local: NDArray[np.float64]) -> NDArray[np.float64]:
     """(N, C) sum over end points of the bilinearly interpolated evidence max(l, 0)
-    of the maps (N, H, W), in grid units.
+    of the maps, in grid units.
 
     Unlike the searches on whole cells (occupied or not), the log-odds magnitude
     counts here: within a wall a few cells thick its most often hit cells, the
     surface, pull the end points (median Intel ATE 0.21 -> 0.18 m).
     """
-    n, h, w = logodds.shape
+    n = len(cand)
+    h, w = grid.shape
+    origin, cell = grid.origin, grid.resolution
     x, y = transform_points(cand, local)                                            # (N, C, M)
     u = (x - origin[0]) / cell - 0.5
     v = (y - origin[1]) / cell - 0.5
@@ -41,15 +41,9 @@ def _bilinear_scores(logodds: NDArray[np.int8], origin: NDArray[np.float64], cel
     j0 = np.minimum(np.maximum(np.floor(v), 0), h - 2)
     fu = np.minimum(np.maximum(u - i0, 0.0), 1.0)
     fv = np.minimum(np.maximum(v - j0, 0.0), 1.0)
-    flat = (np.arange(n)[:, None, None] * h + j0.astype(np.intp)) * w + i0.astype(np.intp)
-    f = logodds.reshape(-1)
-
-    def ev(offset: int) -> NDArray[np.float32]:
-        # f[offset:] instead of flat + offset: no index array per corner.
-        return np.maximum(f[offset:].take(flat), 0).astype(np.float32)
-
-    a, b = ev(0), ev(1)
-    c, d = ev(w), ev(w + 1)
+    corners = grid.values_around(np.arange(n)[:, None, None], j0.astype(np.intp), i0.astype(np.intp),
+                                 [0, 0, 1, 1], [0, 1, 0, 1])                      # (4, N, C, M)
+    a, b, c, d = np.maximum(corners, 0).astype(np.float32)
     val = (a * (1 - fu) + b * fu) * (1 - fv) + (c * (1 - fu) + d * fu) * fv
     return val.sum(axis=2)
 
@@ -59,12 +53,12 @@ def hill_climb(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.floa
     """3. hill climbing on the interpolated evidence, steps halving when stuck."""
     n = len(pose)
     res = grid.resolution
-    best = _bilinear_scores(grid.logodds, grid.origin, res, pose[:, None, :], local)[:, 0]
+    best = _bilinear_scores(grid, pose[:, None, :], local)[:, 0]
     step = np.tile([res / 2, res / 2, dth / 8], (n, 1))
     moves = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
     for _ in range(FINE_ITERATIONS):
         cand = pose[:, None, :] + moves[None] * step[:, None, :]
-        sc = _bilinear_scores(grid.logodds, grid.origin, res, cand, local)
+        sc = _bilinear_scores(grid, cand, local)
         j = sc.argmax(axis=1)
         top = sc[np.arange(n), j]
         up = top > best
@@ -135,21 +129,14 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
     much as one at the kernel's edge), for choosing among starts.
     """
     n = len(pose)
-    map_of = np.arange(n) if maps is None else np.asarray(maps, dtype=np.intp)
-    cap = (ICP_RADIUS * grid.resolution / ICP_SIGMA) ** 2                 # cost of an end point not found
     res = grid.resolution
     h, w = grid.shape
     d = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
     ox, oy = (v.reshape(-1) for v in np.meshgrid(d, d))
-    shift = (oy * w + ox).tolist()                                     # flat offsets of the kernel
-    lo = shift[0]
     kk = len(d)
     dk = d.astype(np.float32)[:, None, None]                           # (K, 1, 1) float32 arithmetic
     gain = np.float32(-0.5 / ICP_SPREAD ** 2)
-    kernel = np.empty((len(shift), n, len(local)), dtype=grid.logodds.dtype)
-    cells = grid.cells_flat()
-    few = n * len(local) * len(shift) <= SMALL_GATHER
-    offsets = (np.array(shift, dtype=np.intp) - lo)[:, None, None]    # (K, 1, 1): base already holds lo
+    kernel = np.empty((len(ox), n, len(local)), dtype=np.int8)
     # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
     c0, s0 = cos_sin(centre[:, 2])
     ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
@@ -157,6 +144,10 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
     p_tt = 1.0 / spread[2] ** 2
     has_normal = np.any(normals != 0, axis=1)
     pose = pose.copy()
+    map_of = np.arange(n) if maps is None else np.asarray(maps, dtype=np.intp)
+    particle = np.broadcast_to(map_of[:, None], (n, len(local)))
+    cap = (ICP_RADIUS * grid.resolution / ICP_SIGMA) ** 2                 # cost of an end point not found
+    cell: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None     # the kernel's centre cells so far
     for _ in range(ICP_ITERATIONS):
         c, s = cos_sin(pose[:, 2, None])
         rx = c * local[:, 0] - s * local[:, 1]                         # (N, M) end point - position
@@ -167,12 +158,13 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
         # cells of the grid were never seen: nothing occupied to find there)
         iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
         iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
-        base = (map_of[:, None] * h + iv) * w + iu + lo                # (N, M), >= 0 (lo < 0)
-        if few:   # one gather: for a particle or two, the calls cost more than the cells
-            np.take(cells, base[None] + offsets, out=kernel, mode="clip")
-        else:
-            for j, sh in enumerate(shift):                             # kernel first: sums add whole slabs
-                np.take(cells[sh - lo:], base, out=kernel[j], mode="clip")  # cells base + sh
+        if cell is None:
+            grid.values_around(particle, iv, iu, oy, ox, out=kernel)   # kernel first: sums add whole slabs
+        else:   # a later step moves few end points to another cell: only theirs are read again
+            moved = (iu != cell[1]) | (iv != cell[0])
+            if moved.any():
+                kernel[:, moved] = grid.values_around(particle[moved], iv[moved], iu[moved], oy, ox)
+        cell = (iv, iu)
         ex = (u - iu - 0.5).astype(np.float32) - dk                    # (K, N, M) end point - centre [cells]
         ey = (v - iv - 0.5).astype(np.float32) - dk
         # The target is the Gaussian-weighted mean of the occupied centres nearby, not

@@ -24,6 +24,8 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 
 POOL = 4               # coarse level: cells per side of a pooled cell
 SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further
+POOL_CELLS = 1 << 20   # cells pooled at a time (maps x window): the work arrays stay small
+SEARCH_CELLS = 1 << 16  # candidate end points (particles x turns x end points) searched at a time
 
 
 def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
@@ -35,16 +37,21 @@ def _cell_score(logodds: NDArray[np.int8]) -> NDArray[np.int8]:
     return (logodds > 0).view(np.int8)
 
 
-def grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: float,
+def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64], cell: float,
                  poses: NDArray[np.float64], turns: NDArray[np.float64], local: NDArray[np.float64],
                  k: int, flags: bool = False) -> NDArray[np.int64]:
     """Scores (N, A, (2k+1)^2) of poses turned by turns (A,) and shifted by -k..k cells.
 
     level: (N, Hv, Wv) log-odds (only max(l, 0) counts) with cells of size `cell` and
-    lower-left corner `origin`, or (flags) already the 0/1 cell scores. Candidate
-    t = (dy + k) * (2k + 1) + (dx + k).
+    lower-left corner `origin`, or (flags) already the 0/1 cell scores; or the maps
+    themselves (a GridMaps: its log-odds). Candidate t = (dy + k) * (2k + 1) + (dx + k).
     """
-    n, hv, wv = level.shape
+    n = len(poses)
+    per = max(1, SEARCH_CELLS // max(n * len(local), 1))
+    if len(turns) > per:   # a few turns at a time: the (N, A, M) work arrays stay small
+        return np.concatenate([grid_search(level, origin, cell, poses, turns[a:a + per], local, k, flags)
+                               for a in range(0, len(turns), per)], axis=1)
+    hv, wv = level.shape if isinstance(level, GridMaps) else level.shape[1:]
     cand = np.repeat(poses[:, None, :], len(turns), axis=1)
     cand[..., 2] += turns
     x, y = transform_points(cand, local)                                            # (N, A, M)
@@ -52,22 +59,32 @@ def grid_search(level: NDArray[np.int8], origin: NDArray[np.float64], cell: floa
     # there are at most k cells off, in a part of the window nothing was seen in.
     cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
     cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
-    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx                # (N, A, M)
     d = np.arange(-k, k + 1)
+    # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
+    acc = np.int8 if len(local) < 128 else np.int16
+    # End points first: one gather per shift (no (N, A, T, M) index array), and the sum
+    # over end points adds whole (N, A) slabs. Every shifted cell is inside (clamped above).
+    if isinstance(level, GridMaps):
+        vals = level.values_around(np.arange(n)[None, :, None], cy.transpose(2, 0, 1), cx.transpose(2, 0, 1),
+                                   np.repeat(d, len(d)), np.tile(d, len(d)))       # (T, M, N, A)
+        sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)      # (T, N, A)
+        return sums.transpose(1, 2, 0).astype(np.int64, order="C")
+    flat = (np.arange(n)[:, None, None] * hv + cy) * wv + cx                # (N, A, M)
     shifts = (d[:, None] * wv + d[None, :]).reshape(-1).tolist()            # (T,), ascending
-    # End points first: one gather per shift, from the flat map offset by the shift
-    # (no (N, A, T, M) index array), and the sum over end points adds whole (N, A)
-    # slabs. Every shifted cell is inside (clamped above), so mode="clip" never clips.
     lo = shifts[0]
     at = np.ascontiguousarray(flat.transpose(2, 0, 1), dtype=np.intp)       # (M, N, A)
     at += lo                                                                # >= 0: cells are clamped k from the edge
     f = level.reshape(-1)
-    vals = scratch("grid_search", (len(shifts),) + at.shape, level.dtype)  # (T, M, N, A), reused
+    # all shifts' cells at once and one sum, or (a wide search) each shift's cells summed in turn
+    together = len(shifts) * at.size <= SEARCH_CELLS * 16
+    vals = scratch("grid_search", ((len(shifts),) if together else ()) + at.shape, np.int8)
+    sums = np.empty((len(shifts), n, len(turns)), dtype=acc)                 # (T, N, A)
     for i, s in enumerate(shifts):
-        np.take(f[s - lo:], at, out=vals[i], mode="clip")                   # cells flat + s (s - lo >= 0)
-    # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
-    acc = np.int8 if len(local) < 128 else np.int16
-    sums = (vals if flags else _cell_score(vals)).sum(axis=1, dtype=acc)  # (T, N, A)
+        np.take(f[s - lo:], at, out=vals[i] if together else vals, mode="clip")   # cells flat + s (s - lo >= 0)
+        if not together:
+            np.sum(vals if flags else _cell_score(vals), axis=0, dtype=acc, out=sums[i])
+    if together:
+        np.sum(vals if flags else _cell_score(vals), axis=1, dtype=acc, out=sums)
     return sums.transpose(1, 2, 0).astype(np.int64, order="C")
 
 
@@ -118,25 +135,10 @@ def pool_occupied(level: NDArray[np.int8], above: int = 0) -> tuple[NDArray[np.i
     """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
     2x2 and 4x4 block is occupied (log-odds above `above`; H, W multiples of 4).
 
-    Column pairs of a contiguous flag array are read as one uint16 each, row pairs
-    as the two halves of a doubled row: cheaper than maxima of strided int8 views.
-    A few maps at a time, in reused work arrays: the temporaries stay in cache.
+    Any cell above `above` is the block's maximum above it (see _block_max).
     """
-    n, h, w = level.shape
-    maps = 8  # at a time
-    half = np.empty((n, h // 2, w // 2), dtype=np.bool_)
-    quarter = np.empty((n, h // 4, w // 4), dtype=np.bool_)
-    for a in range(0, n, maps):
-        b = min(n, a + maps)
-        rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
-                          out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
-        occupied = np.greater(rows, above, out=rows.view(np.bool_))
-        np.not_equal(occupied.view(np.uint16), 0, out=half[a:b])
-        pairs = half[a:b].reshape(b - a, h // 4, w)                       # rows 2i, 2i+1 side by side
-        quads = np.bitwise_or(pairs[:, :, :w // 2], pairs[:, :, w // 2:],
-                              out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
-        np.not_equal(quads.view(np.uint16), 0, out=quarter[a:b])
-    return half.view(np.int8), quarter.view(np.int8)
+    m2 = _block_max(level, "pool2")
+    return (m2 > above).view(np.int8), (_block_max(m2, "pool4") > above).view(np.int8)
 
 
 def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
@@ -146,34 +148,20 @@ def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.i
     An end point on a free block contradicts the map (the beam would have ended
     there before): summed, these flags score a candidate by the end points it puts on
     walls less those it puts in free space, which a wrong alignment (a turned copy of
-    a room, the wrong side of a wall) cannot hide. The same passes as pool_occupied,
-    for "any occupied" and "any not free" from one maximum of row pairs.
+    a room, the wrong side of a wall) cannot hide. They are the sign of the block's
+    maximum: above 0 if any cell is occupied, below 0 if every cell is free.
     """
-    n, h, w = level.shape
-    maps = 8  # at a time
-    half = np.empty((n, h // 2, w // 2), dtype=np.int8)
-    quarter = np.empty((n, h // 4, w // 4), dtype=np.int8)
-    for a in range(0, n, maps):
-        b = min(n, a + maps)
-        rows = np.maximum(level[a:b, 0::2, :], level[a:b, 1::2, :],
-                          out=scratch("pool_rows", (b - a, h // 2, w), np.int8))
-        out2, out4 = [], []
-        for k, above in enumerate((0, -1)):                     # occupied; not known free
-            flags = np.greater(rows, above, out=scratch(f"pool_flags{k}", (b - a, h // 2, w), np.bool_))
-            pair = np.not_equal(flags.view(np.uint16), 0, out=scratch(f"pool_half{k}", (b - a, h // 2, w // 2),
-                                                                     np.bool_))
-            rows2 = pair.reshape(b - a, h // 4, w)               # rows 2i, 2i+1 side by side
-            quads = np.bitwise_or(rows2[:, :, :w // 2], rows2[:, :, w // 2:],
-                                  out=scratch("pool_quads", (b - a, h // 4, w // 2), np.bool_))
-            out2.append(pair.view(np.int8))
-            out4.append(np.not_equal(quads.view(np.uint16), 0,
-                                     out=scratch(f"pool_quarter{k}", (b - a, h // 4, w // 4), np.bool_)).view(np.int8))
-        # occupied + not free - 1: +1 occupied, 0 unknown, -1 all free
-        np.add(out2[0], out2[1], out=half[a:b])
-        half[a:b] -= 1
-        np.add(out4[0], out4[1], out=quarter[a:b])
-        quarter[a:b] -= 1
-    return half, quarter
+    m2 = _block_max(level, "pool2")
+    return np.sign(m2), np.sign(_block_max(m2, "pool4"))
+
+
+def _block_max(level: NDArray[np.int8], key: str) -> NDArray[np.int8]:
+    """(k, H, W) -> (k, H/2, W/2) maxima of 2x2 blocks, in a reused work array: row pairs
+    first (whole rows), then the two bytes of each column pair."""
+    k, h, w = level.shape
+    rows = np.maximum(level[:, 0::2, :], level[:, 1::2, :], out=scratch(key + "_rows", (k, h // 2, w), np.int8))
+    pairs = rows.reshape(k, h // 2, w // 2, 2)
+    return np.maximum(pairs[..., 0], pairs[..., 1], out=scratch(key, (k, h // 2, w // 2), np.int8))
 
 
 def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:

@@ -96,6 +96,31 @@ def test_grid_message_layout():
     assert msg.header.frame_id == "map"
 
 
+def test_published_maps_are_the_same_with_dense_and_tiled_storage():
+    # /map, dynamic_map and ~particle_map_<i> are grid_msgs of the best and other
+    # particles: the filter on shared tiles publishes what the dense grids did.
+    from fastslam import simrun
+    from fastslam.config import SlamConfig
+    from fastslam.filter.slam import FastSlam
+    from fastslam.filter.tiles import TileMaps
+
+    cfg = SlamConfig(particles=5, seed=2)
+    runs = {}
+    for storage in (GridMaps, TileMaps):
+        saved, FastSlam.maps_type = FastSlam.maps_type, storage
+        try:
+            runs[storage] = simrun.run("room", cfg, seed=2, max_time=20.0).slam
+        finally:
+            FastSlam.maps_type = saved
+    dense, tiled = runs[GridMaps], runs[TileMaps]
+    assert isinstance(tiled.grid, TileMaps) and tiled.best == dense.best
+    for i in range(cfg.particles):
+        a, meta_a = grid_msgs(dense.grid, i, "map", rospy.Time(3))
+        b, meta_b = grid_msgs(tiled.grid, i, "map", rospy.Time(3))
+        assert a == b and meta_a == meta_b
+    assert (np.array(b.data) >= 0).sum() > 1000                            # a map, not an empty one
+
+
 def test_planar_poses_and_transforms():
     q = quaternion_from_yaw(0.5)
     assert (q.x, q.y, q.z, q.w) == (0.0, 0.0, math.sin(0.25), math.cos(0.25))

@@ -39,7 +39,7 @@ def test_growth_past_max_map_extent_is_refused_once_and_mapping_goes_on_inside()
     # cells inside the map seen at the end: the robot at x = 29.5 m sees nothing inside, but
     # at 12 m (inside) the ring of hits at 1 m was mapped
     ix = slam.grid.world_to_cell([13.0, 0.0])[0]
-    assert slam.grid.logodds[:, 100, ix].max() > 0
+    assert slam.grid.values([0, 1], 100, ix).max() > 0
 
 
 def test_only_what_is_missing_is_grown_when_the_usual_growth_would_pass_the_bound():
@@ -49,7 +49,8 @@ def test_only_what_is_missing_is_grown_when_the_usual_growth_would_pass_the_boun
     assert slam.grid.shape == (200, 200 + 13)          # 0.6 m + the edge cell, not half the map
 
 
-def test_growth_past_the_memory_budget_is_refused():
+def test_growth_past_the_memory_budget_is_refused(monkeypatch):
+    monkeypatch.setattr(FastSlam, "maps_type", GridMaps)   # dense maps: every cell held
     cfg = SlamConfig(particles=4, seed=0, toggle_noise=0)
     maps = GridMaps.bytes_for(4, cfg.grid_shape)       # 160 kB
     slam = FastSlam(cfg, limits=Limits(map_bytes=int(2.5 * maps)))
@@ -58,6 +59,21 @@ def test_growth_past_the_memory_budget_is_refused():
     assert len(refused) == 1 and "more than the memory limit leaves them (0.4 MB; memory_limit_mb)" in refused[0]
     # a growth holds the old and the new maps at once: both within the budget
     assert slam.grid.nbytes <= 1.5 * maps and slam.updates == 40
+
+
+def test_tiled_maps_are_budgeted_by_the_tiles_they_hold():
+    cfg = SlamConfig(particles=4, seed=0, toggle_noise=0)
+    free = FastSlam(cfg)
+    held = []
+    for i, x in enumerate(np.arange(0.0, 40.0, 1.0)):
+        free.step(np.array([x, 0.0, 0.0]), _scan(float(i)))
+        held.append(free.grid.nbytes)
+    assert held[-1] < GridMaps.bytes_for(4, free.grid.shape) / 2     # shared tiles: below dense
+    limit = held[20]                                                  # what the maps held half way
+    slam = FastSlam(cfg, limits=Limits(map_bytes=limit))
+    refused = [i.refused for i in _drive(slam, np.arange(0.0, 40.0, 1.0)) if i.refused]
+    assert len(refused) == 1 and "memory limit" in refused[0]
+    assert slam.grid.shape[1] < free.grid.shape[1] and slam.updates == 40
 
 
 def test_a_failed_allocation_is_a_refusal_not_a_crash(monkeypatch):

@@ -155,16 +155,17 @@ def test_probability_occupancy_and_known_cells_of_a_particle():
     np.testing.assert_array_equal(grid.known_cells(), [1, 2])
 
 
-def test_a_view_shares_one_particles_cells_and_the_flat_index_is_n_h_w():
+def test_a_view_shares_some_particles_cells():
     grid = GridMaps(3, (4, 5), RES, (1.0, -2.0))
     grid.logodds[1, 2, 3] = 7
     one = grid.view(1)
-    assert one.logodds.shape == (1, 4, 5) and one.shape == (4, 5)
+    assert one.logodds.shape == (1, 4, 5) and one.shape == (4, 5) and one.particles == 1
     assert one.logodds[0, 2, 3] == 7 and np.shares_memory(one.logodds, grid.logodds)
     assert one.resolution == RES and tuple(one.origin) == (1.0, -2.0)
     grid.logodds[1, 0, 0] = -3                     # later writes show through
     assert one.logodds[0, 0, 0] == -3
-    assert grid.cells_flat()[(1 * 4 + 2) * 5 + 3] == 7 and one.cells_flat()[2 * 5 + 3] == 7
+    two = grid.view(1, 3)
+    assert two.particles == 2 and two.values([0, 1], [2, 2], [3, 3]).tolist() == [7, 0]
 
 
 # -- memory: what the maps hold and what a growth would allocate (the node's budget) ---------

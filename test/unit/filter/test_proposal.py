@@ -80,12 +80,13 @@ def test_free_space_distrusts_a_match_that_puts_end_points_in_the_room(room_scan
 
 def test_likelihood_free_costs_end_points_in_known_free_space(room_scan):
     slam = _mapped(room_scan)
-    slam.grid.logodds[1][slam.grid.logodds[1] < 0] = 0   # particle 1 forgot its free space, kept its walls
+    iy, ix = np.nonzero(slam.grid.particle_map(1) < 0)
+    slam.grid.put(1, iy, ix, 0)                       # particle 1 forgot its free space, kept its walls
     scan = room_scan(np.array([-0.6, 0.0, 0.0]), ANGLES)  # seen 0.6 m from where both particles are
     weights = []
     for free in (0.0, 4.5):
         s = FastSlam(slam.cfg.replace(likelihood_free=free))
-        s.grid.logodds, s.grid.origin, s.poses = slam.grid.logodds.copy(), slam.grid.origin, slam.poses.copy()
+        s.grid, s.poses = slam.grid.copy(), slam.poses.copy()
         s._observe(select_beams(scan, s.cfg))
         weights.append(s.log_w.copy())
     assert weights[0][0] == weights[0][1]                 # the same walls: the same weight
@@ -136,14 +137,14 @@ def test_normaliser_weight_charges_a_match_far_from_its_own_prediction(room_scan
     # predicted itself 0.15 m away (3 std-devs of its motion): the likelihood weight
     # cannot tell them apart, the normaliser's motion prior costs particle 1.
     slam = _mapped(room_scan)
-    slam.grid.logodds[1] = slam.grid.logodds[0]
+    slam.grid.reorder(np.array([0, 0]))            # particle 1 takes particle 0's map
     truth = np.array([0.05, 0.0, 0.4])
     beams = select_beams(room_scan(truth, ANGLES), slam.cfg)
     weights = []
     for mode in ("likelihood", "normaliser"):
         cfg = slam.cfg.replace(**REAL, match_weight=mode, match_beams=90)
         s = FastSlam(cfg)
-        s.grid.logodds, s.grid.origin = slam.grid.logodds.copy(), slam.grid.origin
+        s.grid = slam.grid.copy()
         s._predicted = np.array([truth, truth + [0.15 * math.cos(0.4), 0.15 * math.sin(0.4), 0.0]])
         s._motion_std = np.array([0.05, 0.05, 0.05])
         start, params, prior = match_request(cfg, MatchParams.from_config(cfg), s._predicted, s._predicted,
@@ -173,7 +174,7 @@ def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_s
     # Both particles match at the true pose; particle 1's sample round it landed 0.1 m
     # off: weighed at the sample it loses, weighed at the match (gmapping's) it does not.
     slam = _mapped(room_scan)
-    slam.grid.logodds[1] = slam.grid.logodds[0]
+    slam.grid.reorder(np.array([0, 0]))            # particle 1 takes particle 0's map
     truth = np.array([0.05, 0.0, 0.4])
     beams = select_beams(room_scan(truth, ANGLES), slam.cfg)
     at_match = np.array([truth, truth])
@@ -181,7 +182,7 @@ def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_s
     weights = []
     for mode in ("likelihood", "match"):
         s = FastSlam(slam.cfg.replace(**REAL, match_weight=mode))
-        s.grid.logodds, s.grid.origin = slam.grid.logodds.copy(), slam.grid.origin
+        s.grid = slam.grid.copy()
         s.poses = at_match + [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]
         s._match = match
         s._observe(beams)

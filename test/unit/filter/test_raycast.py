@@ -152,7 +152,7 @@ def likelihood_map(room_scan, room_ranges):
 
 def _values(slam: FastSlam, points: np.ndarray) -> np.ndarray:
     c = slam.grid.world_to_cell(points)
-    return slam.grid.logodds[:, c[:, 1], c[:, 0]]          # (N, P)
+    return slam.grid.values(np.arange(slam.grid.particles)[:, None], c[:, 1], c[:, 0])   # (N, P)
 
 
 def _near(slam: FastSlam, points: np.ndarray, reduce=np.min) -> np.ndarray:
@@ -160,7 +160,8 @@ def _near(slam: FastSlam, points: np.ndarray, reduce=np.min) -> np.ndarray:
     digital beam line runs from the cell of the origin, so it may pass beside a point."""
     c = slam.grid.world_to_cell(points[np.isfinite(points).all(axis=1)])
     d = np.arange(-1, 2)
-    return reduce([slam.grid.logodds[:, c[:, 1] + dy, c[:, 0] + dx] for dy in d for dx in d], axis=0)
+    n = np.arange(slam.grid.particles)[:, None]
+    return reduce([slam.grid.values(n, c[:, 1] + dy, c[:, 0] + dx) for dy in d for dx in d], axis=0)
 
 
 def test_trimmed_map_update_marks_end_cells_and_clears_the_beams(likelihood_map):
@@ -178,4 +179,7 @@ def test_free_beam_step_clears_along_every_kth_beam_but_marks_all_end_cells(like
     assert np.all(_near(slam, mids[traced]) < 0)
     assert np.any(_values(slam, mids[~traced]) == 0)         # untraced beams leave some unknown
     assert np.all(_near(slam, ends[~traced], np.max) > 0)    # ...but their end cells are walls
-    assert np.count_nonzero(slam.grid.logodds < 0) < np.count_nonzero(full.grid.logodds < 0)
+    def free_cells(s: FastSlam) -> int:
+        return sum(int(np.count_nonzero(s.grid.particle_map(i) < 0)) for i in range(s.grid.particles))
+
+    assert free_cells(slam) < free_cells(full)

@@ -54,7 +54,7 @@ def test_same_seed_same_result_and_trajectory_survives_resampling(loop, drifting
     a = run_room(SlamConfig(particles=10, seed=7), truth, odom)
     b = run_room(SlamConfig(particles=10, seed=7), truth, odom)
     assert np.array_equal(a.trajectory(), b.trajectory())
-    assert np.array_equal(a.grid.logodds, b.grid.logodds)
+    assert all(np.array_equal(a.grid.particle_map(i), b.grid.particle_map(i)) for i in range(a.grid.particles))
     traj = a.trajectory()
     assert traj.shape == (30, 4)
     np.testing.assert_allclose(traj[-1, 1:], a.poses[a.best])
@@ -81,14 +81,14 @@ def test_map_grows_when_the_robot_leaves_it_and_clips_when_growth_is_off():
     fixed.step(np.zeros(3), scan)
     info = fixed.step(np.array([4.0, 0.0, 0.0]), scan)
     assert info.clipped and not info.grew and fixed.grid.shape == (200, 200)
-    assert fixed.grid.logodds[:, 100, 199].max() < 0  # the part inside was still mapped
+    assert fixed.grid.values(np.arange(fixed.grid.particles), 100, 199).max() < 0  # the part inside was still mapped
 
 
 def test_no_return_beams_clear_space_but_do_not_weigh():
     scan = Scan(ranges=np.full(360, np.inf), angles=ANGLES, range_min=0.12, range_max=3.5)
     slam = FastSlam(SlamConfig(particles=3, seed=0, no_return_range=1.0))
     slam.step(np.zeros(3), scan)
-    row = slam.grid.logodds[0, 100]
+    row = slam.grid.particle_map(0)[100]
     assert np.all(row[103:120] < 0) and np.all(row[121:] == 0) and row[100:102].max() == 0
     assert np.all(slam.log_w == 0)
 
@@ -257,10 +257,13 @@ def test_tracking_keeps_the_motion_prediction_when_the_match_is_gated_or_blind(r
 def test_tracking_leaves_particles_maps_and_weights_alone(room_scan):
     slam = _tracking()
     _map_two_scans(slam, room_scan)
-    poses, maps, log_w = slam.poses.copy(), slam.grid.logodds.copy(), slam.log_w.copy()
+    def maps_of(s: FastSlam) -> np.ndarray:
+        return np.stack([s.grid.particle_map(i) for i in range(s.grid.particles)])
+
+    poses, maps, log_w = slam.poses.copy(), maps_of(slam), slam.log_w.copy()
     slam.step(np.array([0.14, 0.0, 0.0]), room_scan(np.array([0.1, 0.0, 0.0]), ANGLES, 0.4))
     np.testing.assert_array_equal(slam.poses, poses)
-    np.testing.assert_array_equal(slam.grid.logodds, maps)
+    np.testing.assert_array_equal(maps_of(slam), maps)
     np.testing.assert_array_equal(slam.log_w, log_w)
     # the next update starts from the particles' own poses: the odometry since the last update
     assert slam.step(np.array([0.5, 0.0, 0.0]), room_scan(np.array([0.5, 0.0, 0.0]), ANGLES, 0.6)).processed

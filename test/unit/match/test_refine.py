@@ -32,15 +32,14 @@ def _wall_points(xs: np.ndarray) -> np.ndarray:
 
 
 def test_bilinear_evidence_by_hand():
-    logodds = np.zeros((1, 4, 4), dtype=np.int8)
-    logodds[0, 1, 1] = 100                             # centre (1.5, 1.5)
-    logodds[0, 1, 2] = -100                            # free: no evidence, not negative evidence
+    grid = GridMaps(1, (4, 4), 1.0, (0.0, 0.0))
+    grid.put(0, [1, 1], [1, 2], [100, -100])           # centre (1.5, 1.5); a free cell: no evidence, not negative
     cand = np.zeros((1, 1, 3))
     # at the centre: 100; half a cell right, towards the free cell: 50; on the corner of four cells: 25
     for point, value in (([1.5, 1.5], 100.0), ([2.0, 1.5], 50.0), ([1.0, 1.0], 25.0), ([3.5, 3.5], 0.0)):
-        got = _bilinear_scores(logodds, np.zeros(2), 1.0, cand, np.array([point]))
+        got = _bilinear_scores(grid, cand, np.array([point]))
         assert got.shape == (1, 1) and got[0, 0] == pytest.approx(value)
-    both = _bilinear_scores(logodds, np.zeros(2), 1.0, cand, np.array([[1.5, 1.5], [1.0, 1.0]]))
+    both = _bilinear_scores(grid, cand, np.array([[1.5, 1.5], [1.0, 1.0]]))
     assert both[0, 0] == pytest.approx(125.0)           # summed over end points
 
 
@@ -49,9 +48,9 @@ def test_hill_climb_moves_end_points_onto_a_wall():
     grid.logodds[0, :, 30] = 50                         # a wall along y, cell centres at x = 0.525
     local = np.stack([np.full(21, 0.5), np.linspace(-0.5, 0.5, 21)], 1)   # a wall seen 0.5 m ahead
     start = np.array([[-0.02, 0.1, 0.0]])               # end points at x = 0.48: 0.1 of the peak each
-    before = _bilinear_scores(grid.logodds, grid.origin, 0.05, start[:, None], local)[0, 0]
+    before = _bilinear_scores(grid, start[:, None], local)[0, 0]
     pose = hill_climb(grid, start.copy(), local, 0.02)
-    after = _bilinear_scores(grid.logodds, grid.origin, 0.05, pose[:, None], local)[0, 0]
+    after = _bilinear_scores(grid, pose[:, None], local)[0, 0]
     assert before == pytest.approx(0.1 * 50 * 21)
     # steps of 2.5 cm: -0.02 -> 0.005 -> 0.03, then the halved steps find nothing better along x
     assert pose[0, 0] == pytest.approx(0.03, abs=1e-9)

@@ -63,3 +63,19 @@ def test_shipped_routes_are_collision_free(name: str, t_min: float, t_max: float
     assert finished and t_min <= sim.time <= t_max
     last = sim.route.waypoints[-1]
     assert math.hypot(*(sim.robot.pose[:2] - last)) < sim.route.tolerance
+
+
+def test_the_long_building_route_is_collision_free_at_the_memory_benchs_speed(worlds_dir: Path) -> None:
+    # bench/memory drives it at 1 m/s with 20 Hz physics: 246 m of corridor in about 250 s
+    world = load_world(worlds_dir / "long_building.yaml")
+    cfg = SimConfig(range_noise=0.0, max_linear=1.0, physics_rate=20.0, odom_rate=20.0, scan_rate=1.0)
+    route = load_route(str(worlds_dir / "long_building.route.yaml"))
+    sim = Simulation(world, cfg, np.random.default_rng(0), route=route)
+    finished, lowest = False, math.inf
+    while not finished and sim.time < 400:
+        tick = sim.step()
+        assert not sim.robot.collided, f"collision at t={sim.time:.1f} pose {sim.robot.pose}"
+        lowest = min(lowest, float(world.clearance(sim.robot.pose[None, :2])[0]))
+        finished = tick.route_finished
+    assert finished and 246 <= sim.time <= 300 and lowest > 0.3
+    assert math.hypot(*(sim.robot.pose[:2] - [248.0, 0.0])) < sim.route.tolerance

@@ -90,6 +90,16 @@ class SlamConfig:
     match_beams: int = _num(60, 4, 10000, "scan-match with at most this many returns, evenly spread")
     match_icp_beams: int = _num(0, 0, 10000, "match_refine: icp: on at most this many returns (the ICP costs little "
                                 "per end point, the search and the weights much); 0 = match_beams")
+    match_weight: builtins.str = _choice("likelihood", ("likelihood", "match", "normaliser"),
+                                         "weight of a particle whose match is trusted: likelihood: the scan's "
+                                         "at its new pose (the sample round the match); match: at the matched "
+                                         "pose (gmapping's); normaliser: the improved proposal's (Grisetti et "
+                                         "al. 2007), the likelihood at the match times the motion prior "
+                                         "integrated round it (weight_model: likelihood, match_refine: icp, "
+                                         "match_prior: motion)")
+    match_icp_from_prior: bool = field(default=False, metadata={
+        "doc": "match_refine: icp: also start the ICP from the prior's centre (match_prior: motion: the motion's "
+               "prediction) and keep the better fit (the searches' heading steps exceed the ICP's reach)"})
     match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")
     match_sigma_xy: float = _num(0.01, 0.0, 1.0, "spread of the sample around a matched pose [m]")
@@ -141,6 +151,11 @@ class SlamConfig:
                 raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
         if self.track_scans and self.proposal != "scan_match":
             raise ConfigError("track_scans needs proposal=scan_match (it uses the scan matcher)")
+        if self.match_weight != "likelihood" and (self.weight_model != "likelihood" or self.proposal != "scan_match"):
+            raise ConfigError(f"match_weight={self.match_weight} needs weight_model=likelihood and proposal=scan_match")
+        if self.match_weight == "normaliser" and (self.match_refine != "icp" or self.match_prior != "motion"):
+            raise ConfigError("match_weight=normaliser needs match_refine=icp (the ICP's information) and "
+                              "match_prior=motion (the prior it integrates)")
         if self.match_spread == "match" and self.match_refine != "icp":
             raise ConfigError("match_spread=match needs match_refine=icp (the hill climb has no covariance)")
         for name in ("map_width", "map_height"):

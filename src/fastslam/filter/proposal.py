@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING, Tuple
 import numpy as np
 
 from fastslam.config import SlamConfig
-from fastslam.geometry import cos_sin, wrap_angle
+from fastslam.geometry import cos_sin, inv3, wrap_angle
 from fastslam.match import Match, MatchParams
+from fastslam.match.refine import prior_information
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -73,3 +74,30 @@ def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
     good = match.score >= cfg.match_good_score
     near = within_motion(match.poses, predicted, motion_spread(cfg, motion_std), cfg.match_gate)
     return replace(match, trusted=match.trusted & (good | near))
+
+
+def normaliser_log_terms(poses: NDArray[np.float64], predicted: NDArray[np.float64], spread: NDArray[np.float64],
+                         scan_information: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N,) log of the improved proposal's normaliser (Grisetti et al. 2007) less the log
+    scan likelihood at the matched poses (N, 3), up to a constant shared by all particles.
+
+    The normaliser is what the particle's weight is multiplied by: the scan's
+    likelihood integrated over the motion prior, eta = int p(z | x) p(x | x', u) dx.
+    With the likelihood Gaussian about the match x* (information G = scan_information
+    (N, 3, 3), the weights' own scale) and the prior N(predicted (N, 3), S) with
+    std-devs spread (3,) along, across and of the heading:
+
+        log eta = log p(z | x*) - 1/2 d^T (S + G^-1)^-1 d - 1/2 log det(I + G S),  d = x* - predicted
+
+    (finite where G is singular, along a corridor: (S + G^-1)^-1 = (I + G S)^-1 G). A
+    particle whose match lies far from its own prediction, or whose scan pins it
+    down much tighter than its motion, gets less than one matched where it expected.
+    """
+    prior_cov = inv3(prior_information(predicted, spread))
+    eye = np.eye(3)
+    m = eye + scan_information @ prior_cov
+    a = inv3(m) @ scan_information
+    d = poses - predicted
+    d[:, 2] = wrap_angle(d[:, 2])
+    quad = np.einsum("ni,nij,nj->n", d, a, d)
+    return np.asarray(-0.5 * quad - 0.5 * np.log(np.linalg.det(m)))

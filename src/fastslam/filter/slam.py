@@ -19,13 +19,15 @@ from fastslam.filter.budget import Limits
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
-from fastslam.filter.proposal import gate_match, match_request
+from fastslam.filter.proposal import gate_match, match_request, motion_spread, normaliser_log_terms
 from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
 from fastslam.filter.tiles import TileMaps
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, relative, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses, refine_poses
+from fastslam.match.matcher import PRIOR_FLOOR
+from fastslam.match.refine import ICP_SIGMA
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -93,6 +95,7 @@ class FastSlam:
         self.history = History()
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
+        self._match: Match | None = None              # this update's gated match (match_weight)
         self.live_pose = np.zeros(3)
         self._live_odom: NDArray[np.float64] | None = None    # odometry at that scan
         self._match_odom: NDArray[np.float64] | None = None   # ... at its last match
@@ -246,6 +249,7 @@ class FastSlam:
         match = gate_match(self.cfg, match, self._predicted, self._motion_std)
         if match.trusted.any():
             self._sample_around(match)
+            self._match = match
         return int(match.trusted.sum())
 
     def _sample_around(self, match: Match) -> None:
@@ -271,16 +275,22 @@ class FastSlam:
         weigh = bool(beams.hit.any())  # with no return to compare, weights stay as they are
         log_w = None
         origins, angles = self._beam_frames(beams)
+        match, self._match = self._match, None
         if cfg.weight_model == "likelihood":
             if weigh:
                 sub = returns_subset(beams, cfg.match_beams)  # the matcher's end points
-                dist = endpoint_distances(self.grid, self.poses, sub, max_dist=cfg.likelihood_max_dist)
+                if cfg.match_weight == "likelihood":
+                    match = None
+                at = self.poses if match is None else np.where(match.trusted[:, None], match.poses, self.poses)
+                dist = endpoint_distances(self.grid, at, sub, max_dist=cfg.likelihood_max_dist)
                 log_w = likelihood_log_weights(dist, sub.hit, cfg.likelihood_sigma,
                                                cfg.likelihood_max_dist, cfg.likelihood_gain)
                 if cfg.likelihood_free > 0:
                     # end points in known free space with no wall near: the scan contradicts the map there
-                    wrong = (dist >= cfg.likelihood_max_dist) & sub.hit & self._in_free_space(sub)
+                    wrong = (dist >= cfg.likelihood_max_dist) & sub.hit & self._in_free_space(sub, at)
                     log_w = log_w - cfg.likelihood_gain * cfg.likelihood_free * wrong.sum(axis=1)
+                if match is not None and cfg.match_weight == "normaliser":   # times the prior round the match
+                    log_w = log_w + self._normaliser_terms(match, int(np.count_nonzero(sub.hit)))
             trimmed.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
                                    groups=TRIM_GROUPS, free_step=cfg.free_beam_step)
         else:
@@ -292,16 +302,29 @@ class FastSlam:
             self.log_w = self.log_w + log_w
             self.log_w -= self.log_w.max()  # only differences matter; keep them small
 
-    def _in_free_space(self, beams: Beams) -> NDArray[np.bool_]:
-        """(N, M) whether each beam's end point seen from each particle falls on a cell its
-        map holds free (log-odds below zero); outside the grid: no."""
+    def _normaliser_terms(self, match: Match, points: int) -> NDArray[np.float64]:
+        """(N,) what the improved proposal's weight adds to the likelihood at the match of
+        each trusted particle (0 for the others): normaliser_log_terms with the ICP's
+        information on the weights' scale (likelihood_gain, likelihood_sigma, their
+        `points` end points against the ICP's)."""
+        cfg = self.cfg
+        assert match.scan_information is not None
+        scale = (cfg.likelihood_gain * points / max(match.icp_points, 1)
+                 * (ICP_SIGMA / cfg.likelihood_sigma) ** 2)
+        spread = np.maximum(motion_spread(cfg, self._motion_std), PRIOR_FLOOR)   # the matcher's prior
+        terms = normaliser_log_terms(match.poses, self._predicted, spread, scale * match.scan_information)
+        return np.where(match.trusted, terms, 0.0)
+
+    def _in_free_space(self, beams: Beams, poses: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """(N, M) whether each beam's end point seen from each pose (N, 3) falls on a cell
+        its particle's map holds free (log-odds below zero); outside the grid: no."""
         grid = self.grid
         h, w = grid.shape
-        x, y = transform_points(self.poses, end_points(beams, np.arange(len(beams.ranges))))
+        x, y = transform_points(poses, end_points(beams, np.arange(len(beams.ranges))))
         ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
         iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
         inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-        cells = grid.values(np.arange(len(self.poses))[:, None], np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1))
+        cells = grid.values(np.arange(len(poses))[:, None], np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1))
         return inside & (cells < 0)
 
     def _resample(self, w: NDArray[np.float64], n_eff: float) -> tuple[bool, NDArray[np.intp]]:

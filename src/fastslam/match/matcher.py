@@ -33,7 +33,7 @@ from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
-from fastslam.match.refine import hill_climb, icp, surface_normals
+from fastslam.match.refine import hill_climb, icp_fit, prior_information, surface_normals
 from fastslam.match.search import POOL, POOL_CELLS, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -61,13 +61,15 @@ class MatchParams:
     free_space: bool = False     # end points in known free space count against a candidate, and
     max_free: float = 1.0        # a match with a larger share of them is not trusted
     icp_beams: int = 0           # ICP (refine "icp") on at most this many returns; 0: beams
+    icp_from_prior: bool = False  # ICP also from the prior's centre, the better fit kept
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
-                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams)
+                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
+                   icp_from_prior=cfg.match_icp_from_prior)
 
 
 @dataclass(frozen=True)
@@ -78,12 +80,16 @@ class Match:
     trusted: (N,) bool, whether each match passed the checks.
     covariance: (N, 3, 3) of each match (ICP with covariance=True), else None.
     score: (N,) share of the matched end points on occupied 2x2 blocks (None: no match).
+    scan_information: (N, 3, 3) what the ICP's end points alone know of each pose (its
+    Hessian less the prior), over icp_points end points (ICP only, else None).
     """
 
     poses: NDArray[np.float64]
     trusted: NDArray[np.bool_]
     covariance: NDArray[np.float64] | None = None
     score: NDArray[np.float64] | None = None  # (N,) share of the end points on occupied cells
+    scan_information: NDArray[np.float64] | None = None
+    icp_points: int = 0
 
 
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
@@ -126,15 +132,19 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
              for a in range(0, n, size)]
     pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
     cov = None if found[0][2] is None else np.concatenate([f[2] for f in found])
-    return Match(poses=pose, trusted=trusted, covariance=cov, score=score)
+    info = None if found[0][4] is None else np.concatenate([f[4] for f in found])
+    return Match(poses=pose, trusted=trusted, covariance=cov, score=score, scan_information=info,
+                 icp_points=0 if icp_points is None else len(icp_points[0]))
 
 
 def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.float64], spread: NDArray[np.float64],
                 local: NDArray[np.float64], icp_points: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
                 box: tuple[int, int, int, int],
                 k0: int, ka: int, dth: float, params: MatchParams
-                ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.float64]]:
-    """match_poses for the particles of grid (a view): (poses, trusted, covariance, score)."""
+                ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.float64],
+                           NDArray[np.float64] | None]:
+    """match_poses for the particles of grid (a view): (poses, trusted, covariance, score,
+    scan information: the ICP's Hessian less the prior, or None)."""
     res = grid.resolution
     coarse = POOL * res
     x0, y0, _, _ = box
@@ -154,9 +164,10 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     scores = grid_search(grid, grid.origin, res, pose, turns, local, 1)
     pose = pick(scores, pose, turns, 1, res, centre, spread, m)
     # 3. finer than a cell
-    cov = None
+    cov = scan_info = None
     if icp_points is not None:
-        pose, info = icp(grid, pose, icp_points[0], icp_points[1], centre, spread)
+        pose, info = _icp(grid, pose, icp_points[0], icp_points[1], centre, spread, params.icp_from_prior)
+        scan_info = info - prior_information(centre, spread)
         if params.covariance:
             cov = inv3(info)
     else:
@@ -166,7 +177,7 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     trusted = (score >= params.min_score) & (known >= params.min_known)
     if params.free_space:
         trusted &= (flags < 0).mean(axis=1) <= params.max_free
-    return pose, trusted, cov, score
+    return pose, trusted, cov, score, scan_info
 
 
 def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
@@ -214,13 +225,35 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     sel = spread_returns(beams, max(params.beams, params.icp_beams))
     local = end_points(beams, sel)
     centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
-    pose, info = icp(grid, start, local, surface_normals(beams, sel), centre, spread)
+    pose, info = _icp(grid, start, local, surface_normals(beams, sel), centre, spread, params.icp_from_prior)
     occupied, free = neighbourhood_flags(grid, pose, local)
     score = occupied.mean(axis=1)
     trusted = score >= params.min_score
     if params.free_space:
         trusted &= free.mean(axis=1) <= params.max_free
-    return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score)
+    return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score,
+                 scan_information=info - prior_information(centre, spread), icp_points=len(sel))
+
+
+def _icp(grid: GridMaps, start: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
+         centre: NDArray[np.float64], spread: NDArray[np.float64], from_prior: bool
+         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """ICP from the searched poses start (N, 3); (from_prior) also from the prior's centre,
+    each particle keeping the start whose result fits better.
+
+    The searches score end points on occupied cells, which a blurred wall a few cells
+    thick makes flat in heading over a degree or two, while the ICP's basin is about
+    half a degree (ACES: a search turned a prediction 0.5 degrees off to 0.7 degrees
+    off, and the ICP settled on the ghost of a wall drawn at that turn); the motion's
+    own prediction is often the better start."""
+    if not from_prior:
+        pose, info, _ = icp_fit(grid, start, local, normals, centre, spread)
+        return pose, info
+    n = len(start)
+    both = np.arange(2 * n) % n
+    pose, info, fit = icp_fit(grid, np.concatenate([start, centre]), local, normals, centre[both], spread, maps=both)
+    second = fit[n:] < fit[:n]
+    return np.where(second[:, None], pose[n:], pose[:n]), np.where(second[:, None, None], info[n:], info[:n])
 
 
 def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64]

@@ -86,9 +86,31 @@ def surface_normals(beams: Beams, sel: NDArray[np.intp]) -> NDArray[np.float64]:
     return out
 
 
+def prior_information(centre: NDArray[np.float64], spread: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N, 3, 3) information of the Gaussian prior with std-devs spread (3,) along and
+    across the heading of centre (N, 3) and of the heading, in the map frame: the
+    prior part of the Hessian icp_fit returns."""
+    c, s = cos_sin(centre[:, 2])
+    ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
+    out = np.zeros((len(centre), 3, 3))
+    out[:, 0, 0] = ia * c ** 2 + ic * s ** 2
+    out[:, 1, 1] = ia * s ** 2 + ic * c ** 2
+    out[:, 0, 1] = out[:, 1, 0] = (ia - ic) * c * s
+    out[:, 2, 2] = 1.0 / spread[2] ** 2
+    return out
+
+
 def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
          centre: NDArray[np.float64], spread: NDArray[np.float64]
          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """icp_fit without the fit: (poses (N, 3), information (N, 3, 3)), pose n on map n."""
+    pose, hess, _ = icp_fit(grid, pose, local, normals, centre, spread)
+    return pose, hess
+
+
+def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
+            centre: NDArray[np.float64], spread: NDArray[np.float64], maps: NDArray[np.intp] | None = None
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """3. Gauss-Newton steps on the distances from the end points to the centres of their
     nearest occupied cells (a weighted mean of them), measured along the surface normal where the scan gives one
     (normals (M, 2), robot frame; zero: the whole distance), plus the Gaussian prior
@@ -99,6 +121,12 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
     corridor the hill climb drifted backwards by ~1 % of the distance (the cells seen
     longest are behind the robot). Along the surface the distance is left out, or cell
     centres would pull the end points along walls.
+
+    maps: (N,) the map of each pose (default pose n on map n), so that one call refines
+    several starts per particle. Returns the poses, their information matrices (the
+    Hessian with the prior) and their fit: the objective, in squared std-devs, at the
+    pose before the last step (an end point with no occupied cell in reach costs as
+    much as one at the kernel's edge), for choosing among starts.
     """
     n = len(pose)
     res = grid.resolution
@@ -116,7 +144,9 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
     p_tt = 1.0 / spread[2] ** 2
     has_normal = np.any(normals != 0, axis=1)
     pose = pose.copy()
-    particle = np.broadcast_to(np.arange(n)[:, None], (n, len(local)))
+    map_of = np.arange(n) if maps is None else np.asarray(maps, dtype=np.intp)
+    particle = np.broadcast_to(map_of[:, None], (n, len(local)))
+    cap = (ICP_RADIUS * grid.resolution / ICP_SIGMA) ** 2                 # cost of an end point not found
     cell: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None     # the kernel's centre cells so far
     for _ in range(ICP_ITERATIONS):
         c, s = cos_sin(pose[:, 2, None])
@@ -169,6 +199,9 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
         grad = np.stack([fx.sum(1) + p_xx * off[:, 0] + p_xy * off[:, 1],
                          fy.sum(1) + p_xy * off[:, 0] + p_yy * off[:, 1],
                          (rx * fy - ry * fx).sum(1) + p_tt * off[:, 2]], axis=1)
+        cost = ((gx * fx + gy * fy).sum(1) + cap * np.count_nonzero(~found, axis=1)
+                + p_xx * off[:, 0] ** 2 + 2 * p_xy * off[:, 0] * off[:, 1] + p_yy * off[:, 1] ** 2
+                + p_tt * off[:, 2] ** 2)
         pose -= solve3(hess, grad)
     pose[:, 2] = wrap_angle(pose[:, 2])
-    return pose, hess
+    return pose, hess, cost

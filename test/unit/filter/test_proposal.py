@@ -6,9 +6,10 @@ import math
 from typing import Callable
 
 import numpy as np
+import pytest
 
-from fastslam.config import SlamConfig
-from fastslam.filter.proposal import gate_match, match_request, within_motion
+from fastslam.config import ConfigError, SlamConfig
+from fastslam.filter.proposal import gate_match, match_request, normaliser_log_terms, within_motion
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
 from fastslam.match import Match, MatchParams, match_poses
@@ -90,3 +91,101 @@ def test_likelihood_free_costs_end_points_in_known_free_space(room_scan):
         weights.append(s.log_w.copy())
     assert weights[0][0] == weights[0][1]                 # the same walls: the same weight
     assert weights[1][0] < weights[1][1] - 0.2            # end points in its free space cost particle 0
+
+
+def test_normaliser_of_a_gaussian_likelihood_and_motion_prior_by_hand():
+    # Per axis, int N(x; x*, 1/g) N(x; p, s) dx over the likelihood's peak value gives
+    # -d^2 / (2 (s + 1/g)) - log(1 + g s) / 2. Along x: g = 100, s = 0.05^2, d = 0.1:
+    # -0.01 / (2 * 0.0125) - log(1.25) / 2 = -0.4 - 0.11157; along y the scan knows
+    # nothing (g = 0): the prior integrates to one whatever d; heading: g = 400,
+    # s = 0.05^2, d = 0.02: -0.0004 / (2 * 0.005) - log(2) / 2 = -0.04 - 0.34657.
+    info = np.diag([100.0, 0.0, 400.0])[None]
+    predicted = np.zeros((1, 3))
+    match = np.array([[0.1, 0.5, 0.02]])
+    got = normaliser_log_terms(match, predicted, np.array([0.05, 0.05, 0.05]), info)
+    assert got[0] == pytest.approx(-0.4 - 0.5 * math.log(1.25) - 0.04 - 0.5 * math.log(2.0), rel=1e-9)
+
+
+def test_normaliser_agrees_with_the_integral_on_a_grid():
+    # 1-D check of the closed form against a sum over x: a likelihood exp(-g (x - x*)^2 / 2)
+    # times the prior density N(x; 0, s), over the likelihood's value at its peak.
+    g, s, xstar = 300.0, 0.04 ** 2, 0.07
+    x = np.linspace(-1.0, 1.0, 200001)
+    dens = np.exp(-0.5 * g * (x - xstar) ** 2) * np.exp(-0.5 * x ** 2 / s) / math.sqrt(2 * math.pi * s)
+    numeric = math.log(dens.sum() * (x[1] - x[0]))
+    info = np.diag([g, 1e-12, 1e-12])[None]
+    got = normaliser_log_terms(np.array([[xstar, 0.0, 0.0]]), np.zeros((1, 3)), np.array([0.04, 1.0, 1.0]), info)
+    assert got[0] == pytest.approx(numeric, abs=1e-6)
+
+
+def test_normaliser_turns_with_the_prediction():
+    # The prior's along and across follow the predicted heading: a match 0.1 m off along
+    # the direction of travel (here +y) meets the along std-dev, not the across one.
+    info = np.diag([100.0, 100.0, 0.0])[None]
+    predicted = np.array([[0.0, 0.0, math.pi / 2]])
+    match = np.array([[0.0, 0.1, math.pi / 2]])
+    wide_along = normaliser_log_terms(match, predicted, np.array([0.1, 0.01, 0.05]), info)
+    wide_across = normaliser_log_terms(match, predicted, np.array([0.01, 0.1, 0.05]), info)
+    # along: -0.01 / (2 (0.01 + 0.01)) = -0.25; across the prior sd is 0.01: -0.01 / (2 * 0.0101)
+    dets = -0.5 * math.log(1 + 100 * 0.01) - 0.5 * math.log(1 + 100 * 0.0001)
+    assert wide_along[0] == pytest.approx(-0.25 + dets, rel=1e-9)
+    assert wide_across[0] == pytest.approx(-0.01 / (2 * 0.0101) + dets, rel=1e-9)
+
+
+def test_normaliser_weight_charges_a_match_far_from_its_own_prediction(room_scan):
+    # Both particles match the scan at the same pose on the same map; particle 1 had
+    # predicted itself 0.15 m away (3 std-devs of its motion): the likelihood weight
+    # cannot tell them apart, the normaliser's motion prior costs particle 1.
+    slam = _mapped(room_scan)
+    slam.grid.reorder(np.array([0, 0]))            # particle 1 takes particle 0's map
+    truth = np.array([0.05, 0.0, 0.4])
+    beams = select_beams(room_scan(truth, ANGLES), slam.cfg)
+    weights = []
+    for mode in ("likelihood", "normaliser"):
+        cfg = slam.cfg.replace(**REAL, match_weight=mode, match_beams=90)
+        s = FastSlam(cfg)
+        s.grid = slam.grid.copy()
+        s._predicted = np.array([truth, truth + [0.15 * math.cos(0.4), 0.15 * math.sin(0.4), 0.0]])
+        s._motion_std = np.array([0.05, 0.05, 0.05])
+        start, params, prior = match_request(cfg, MatchParams.from_config(cfg), s._predicted, s._predicted,
+                                             s._motion_std)
+        match = match_poses(s.grid, np.array([truth, truth]), beams, params, prior=(np.array([truth, truth]),
+                                                                                   prior[1]))
+        assert match.trusted.all() and match.scan_information is not None
+        s.poses = match.poses.copy()
+        s._match = match
+        s._observe(beams)
+        weights.append(s.log_w.copy())
+    assert weights[0][0] == pytest.approx(weights[0][1], abs=1e-9)
+    # 3 std-devs of the prior cost at most 9/2 nats, less as the scan's own spread adds to it
+    assert -4.5 <= weights[1][1] - weights[1][0] < -3.0
+
+
+def test_match_weights_need_the_likelihood_and_the_normaliser_the_icp_and_the_motion_prior():
+    with pytest.raises(ConfigError, match="match_weight=normaliser"):
+        SlamConfig(**{**REAL, "match_refine": "hill"}, weight_model="likelihood", match_weight="normaliser")
+    with pytest.raises(ConfigError, match="match_weight=normaliser"):
+        SlamConfig(**{**REAL, "match_prior": "window"}, weight_model="likelihood", match_weight="normaliser")
+    with pytest.raises(ConfigError, match="match_weight=match needs weight_model=likelihood"):
+        SlamConfig(**REAL, weight_model="assignment", match_weight="match")
+
+
+def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_scan):
+    # Both particles match at the true pose; particle 1's sample round it landed 0.1 m
+    # off: weighed at the sample it loses, weighed at the match (gmapping's) it does not.
+    slam = _mapped(room_scan)
+    slam.grid.reorder(np.array([0, 0]))            # particle 1 takes particle 0's map
+    truth = np.array([0.05, 0.0, 0.4])
+    beams = select_beams(room_scan(truth, ANGLES), slam.cfg)
+    at_match = np.array([truth, truth])
+    match = Match(poses=at_match, trusted=np.ones(2, dtype=bool), score=np.ones(2))
+    weights = []
+    for mode in ("likelihood", "match"):
+        s = FastSlam(slam.cfg.replace(**REAL, match_weight=mode))
+        s.grid = slam.grid.copy()
+        s.poses = at_match + [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]
+        s._match = match
+        s._observe(beams)
+        weights.append(s.log_w.copy())
+    assert weights[0][1] < weights[0][0] - 0.5
+    assert weights[1][0] == pytest.approx(weights[1][1], abs=1e-9)

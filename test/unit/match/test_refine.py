@@ -7,7 +7,16 @@ import pytest
 
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, select_beams, spread_returns
-from fastslam.match.refine import _bilinear_scores, hill_climb, icp, surface_normals
+from fastslam.match.matcher import _icp
+from fastslam.match.refine import (
+    ICP_ITERATIONS,
+    _bilinear_scores,
+    hill_climb,
+    icp,
+    icp_fit,
+    prior_information,
+    surface_normals,
+)
 
 
 def _corridor_grid() -> GridMaps:
@@ -87,6 +96,18 @@ def test_icp_on_an_empty_map_goes_to_the_prior_and_returns_its_information():
     np.testing.assert_allclose(info[0], np.diag([400.0, 100.0, 25.0]), atol=1e-9)
 
 
+def test_prior_information_turns_with_the_heading_as_the_icp_prior_does():
+    # heading 90 degrees: along is y (1/0.05^2 = 400), across is x (1/0.1^2 = 100)
+    grid = GridMaps(2, (40, 40), 0.05, (-1.0, -1.0))
+    centre = np.array([[0.1, -0.1, np.pi / 2], [0.0, 0.0, np.pi / 6]])
+    spread = np.array([0.05, 0.1, 0.2])
+    got = prior_information(centre, spread)
+    np.testing.assert_allclose(got[0], np.diag([100.0, 400.0, 25.0]), atol=1e-9)
+    local = np.array([[0.5, 0.0], [0.0, 0.5]])
+    _, info = icp(grid, centre, local, np.zeros((2, 2)), centre, spread)   # empty maps: the prior alone
+    np.testing.assert_allclose(got, info, atol=1e-9)
+
+
 def test_normals_are_perpendicular_to_the_wall_and_missing_at_gaps():
     # A wall at x = 1 seen from the origin, then one lone return far behind it.
     angles = np.radians(np.array([-10.0, -5.0, 0.0, 5.0, 10.0, 40.0]))
@@ -110,3 +131,62 @@ def test_icp_covariance_is_wide_only_along_the_corridor():
     assert std[0] == pytest.approx(0.05, rel=1e-6)
     assert std[1] == pytest.approx(1 / np.sqrt(42 / 0.05 ** 2 + 1 / 0.05 ** 2), rel=0.01)
     assert std[2] == pytest.approx(1 / np.sqrt((local[:, 0] ** 2).sum() / 0.05 ** 2 + 1 / 0.05 ** 2), rel=0.01)
+
+
+def test_icp_fit_on_an_empty_map_is_the_cost_of_end_points_not_found():
+    # Nothing in reach: each end point costs (2 cells * 0.05 m / 0.05 m)^2 = 4; the first
+    # step reaches the prior's centre, so the fit (before the last step) has no prior term.
+    assert ICP_ITERATIONS >= 2
+    grid = GridMaps(1, (40, 40), 0.05, (-1.0, -1.0))
+    local = np.array([[0.5, 0.0], [0.0, 0.5], [-0.3, 0.2]])
+    centre = np.array([[0.1, -0.1, 0.0]])
+    _, _, fit = icp_fit(grid, np.array([[0.2, 0.1, 0.3]]), local, np.zeros((3, 2)), centre,
+                        np.array([0.05, 0.1, 0.2]))
+    assert fit[0] == pytest.approx(3 * 4.0)
+
+
+def test_icp_fit_of_end_points_on_the_walls_is_the_prior_alone():
+    grid = _corridor_grid()
+    local = _wall_points(np.linspace(-1.0, 1.0, 21) + 0.025)       # on cell centres: zero residuals
+    normals = np.tile([0.0, 1.0], (len(local), 1))
+    centre = np.array([[0.05, 0.0, 0.0]])                         # odometry 5 cm ahead, along the corridor
+    _, _, fit = icp_fit(grid, np.zeros((1, 3)), local, normals, centre, np.array([0.05, 0.05, 0.05]))
+    # along the corridor nothing but the prior: x reaches 0.05 in the first step, so the
+    # last iteration starts there, on the walls, at the prior's centre
+    assert fit[0] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_icp_fit_refines_several_starts_of_one_map_as_separate_calls_do():
+    grid = _corridor_grid()
+    local = _wall_points(np.linspace(-1.0, 1.0, 21))
+    normals = np.tile([0.0, 1.0], (len(local), 1))
+    starts = np.array([[0.0, 0.03, 0.01], [0.02, -0.02, -0.01]])
+    centre = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])
+    spread = np.array([0.05, 0.05, 0.05])
+    pose, info, fit = icp_fit(grid, starts, local, normals, centre, spread, maps=np.array([0, 0]))
+    for i in range(2):
+        one, one_info, one_fit = icp_fit(grid, starts[i:i + 1], local, normals, centre[i:i + 1], spread)
+        np.testing.assert_allclose(pose[i], one[0], atol=1e-12)
+        np.testing.assert_allclose(info[i], one_info[0], atol=1e-9)
+        assert fit[i] == pytest.approx(one_fit[0])
+
+
+def test_icp_from_the_prior_leaves_the_ghost_of_a_wall():
+    # The map holds each wall twice, the copy 0.3 m further out (a wall drawn at a wrong
+    # pose). From a start 0.3 m off the end points lie on the copies: a local minimum
+    # the ICP stays in (its prior pulls 400 against the walls' 16800 per m); started
+    # from the prior's centre as well, the fit there (zero) wins over the ghost's
+    # (the prior's (0.3 / 0.05)^2 = 36).
+    grid = GridMaps(1, (60, 120), 0.05, (-3.0, -1.5))
+    grid.logodds[0, [19, 40], :] = 50                 # walls at y = -0.525 and 0.525
+    grid.logodds[0, [13, 46], :] = 50                 # their copies at y = -0.825 and 0.825
+    xs = np.linspace(-1.0, 1.0, 21) + 0.025
+    local = np.stack([xs, np.full_like(xs, 0.525)], 1)  # one wall seen: its copy is 0.3 m beyond it
+    normals = np.tile([0.0, 1.0], (len(local), 1))
+    centre = np.zeros((1, 3))
+    start = np.array([[0.0, 0.3, 0.0]])
+    spread = np.array([0.05, 0.05, 0.05])
+    alone, _ = _icp(grid, start, local, normals, centre, spread, from_prior=False)
+    both, _ = _icp(grid, start, local, normals, centre, spread, from_prior=True)
+    assert alone[0, 1] > 0.25                          # held by the ghost
+    np.testing.assert_allclose(both[0], [0.0, 0.0, 0.0], atol=1e-6)

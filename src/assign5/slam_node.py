@@ -123,6 +123,10 @@ class SlamNode:
             self._process(msg)
         except Dropped as err:  # convert's BadMessage is Dropped too
             self.counts.drop(str(err))
+        except rospy.ROSException as err:
+            # a publisher closes only when the node shuts down (Ctrl-C during an update): no fault
+            if not (rospy.is_shutdown() or "closed topic" in str(err)):
+                self._die(traceback.format_exc())
         except Exception:  # the filter may be half-updated: stop, and let roslaunch see it
             self._die(traceback.format_exc())
 

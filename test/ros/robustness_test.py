@@ -21,6 +21,7 @@ import rospkg
 import rospy
 import rostest
 import tf2_ros
+from clocked import Connected  # this folder: rostest runs the test from here
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import LaserScan
@@ -32,18 +33,6 @@ from fastslam.sim.world_loader import load_world
 
 ANGLES = np.radians(np.arange(360.0))
 ROOM = load_world(os.path.join(os.path.dirname(__file__), "..", "..", "worlds", "pillar_room.yaml"))
-
-
-class Connected(rospy.SubscribeListener):
-    """Wakes the test when slam.py connects to one of its publishers."""
-
-    def __init__(self, cond):
-        super().__init__()
-        self.cond = cond
-
-    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
-        with self.cond:
-            self.cond.notify_all()
 
 
 class Robustness(unittest.TestCase):

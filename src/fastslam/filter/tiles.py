@@ -39,7 +39,10 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 TILE = (64, 64)        # rows, columns of a tile (powers of two); see docs/benchmarks.md, "Maps"
 # A box the beams visit densely is copied (TilePatch) when its cells are at most this
 # many times the cells traced; else each index is translated to its tile (TileLookup).
-PATCH_FACTOR = 4.0
+# Measured (docs/benchmarks.md, "Patch or lookup"): the speed suite's boxes hold 1.4-9x
+# their traced cells and run up to 2x faster as patches; the Intel log's (real.yaml's
+# 20 m beams in a wide box) hold 70-90x and are faster, and 45 MB smaller, as lookups.
+PATCH_FACTOR = 16.0
 
 
 class TilePool:

@@ -410,8 +410,9 @@ class TilePatch(CellSpace):
         _, th, tw = maps.table.shape
         # a changed tile is written whole: a new one needs no copy of the old cells
         ids = maps._writable((((self.first + i) * th + r0 + r) * tw + c0 + c).astype(np.intp), keep=False)
-        rows = maps.pool.tiles.reshape(-1, tx)
-        rows[ids.astype(np.intp)[:, None] * ty + np.arange(ty)] = self.dense[i, r, :, c]
+        # a take of tile rows, then whole tiles: several times faster than dense[i, r, :, c]
+        src = (((i * nr + r)[:, None] * ty + np.arange(ty)) * nc + c[:, None]).astype(np.intp)
+        maps.pool.tiles[ids.astype(np.intp)] = np.take(self.dense.reshape(-1, tx), src, axis=0)
 
 
 def _changed_tiles(dense: NDArray[np.int8], before: NDArray[np.int8]) -> NDArray[np.bool_]:

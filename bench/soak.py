@@ -402,27 +402,34 @@ def summarise(rows: list[dict[str, Any]], samples: list[dict[str, Any]], watch: 
     worst = max(drops, key=lambda d: d[1], default=(0.0, 0))
     worst_share = worst[1] / max(max((s["known"] for s in points), default=1), 1)
 
-    def baseline(lo: float, hi: float) -> tuple[float, float]:
-        """Memory after warm-up, [lo, hi): the range of the per-minute minima (what stays,
-        transients of a fault left out) and the largest transient above its minute's minimum."""
-        minutes: dict[int, list[float]] = {}
+    def baseline(lo: float, hi: float, window: float = 60.0) -> tuple[float, float]:
+        """Memory after warm-up, [lo, hi): the range of the minima of each whole window
+        (what stays, transients left out) and the largest transient above its window's minimum."""
+        windows: dict[int, list[float]] = {}
         for s in points:
-            if lo <= s["t"] < hi:
-                minutes.setdefault(int(s["t"] // 60), []).append(s["rss"])
-        if not minutes:
+            i = int((s["t"] - lo) // window)
+            if lo <= s["t"] and lo + (i + 1) * window <= hi:   # whole windows only: a part has few samples
+                windows.setdefault(i, []).append(s["rss"])
+        if not windows:
             return float("nan"), float("nan")
-        lows = [min(v) for v in minutes.values()]
-        return float(max(lows) - min(lows)), float(max(max(v) - min(v) for v in minutes.values()))
+        lows = [min(v) for v in windows.values()]
+        return float(max(lows) - min(lows)), float(max(max(v) - min(v) for v in windows.values()))
 
     end = points[-1]["t"] if points else 0.0
-    first, first_peak = baseline(WARM_UP, restart if restart is not None else end + 1)
-    second, second_peak = baseline(restart + WARM_UP, end + 1) if restart is not None else (float("nan"),) * 2
+    before = (WARM_UP, restart if restart is not None else end + 1)
+    after = (restart + WARM_UP, end + 1) if restart is not None else None
+    first, first_peak = baseline(*before)
+    second, second_peak = baseline(*after) if after else (float("nan"),) * 2
+    # six samples a minute can all land on an update's or a fault's transient: the floor of
+    # each report period says whether what stays grows
+    floor = [baseline(*span, window=REPORT_EVERY)[0] if span else float("nan") for span in (before, after)]
     with watch.lock:
         late, calls, errors, stats = tf_lateness(watch.tf_stamps), watch.calls, watch.service_errors, watch.stats
         moments = late_moments(watch.tf_stamps, log)
     out = {"injected": injected, "known_cell_drops": drops, "tf_largest_gaps": moments,
            "rss_flat_after_warm_up_mb": [round(first, 1), round(second, 1)],
            "rss_transient_mb": [round(first_peak, 1), round(second_peak, 1)],
+           "rss_floor_per_report_mb": [round(f, 1) for f in floor],
            "tf_late_max_s": round(late, 3), "service_calls": calls, "service_errors": errors,
            "node_stats": stats, "saved_maps": saved, "rows": rows, "samples": samples,
            "restart_at_min": None if restart is None else round(restart / 60, 1)}
@@ -435,7 +442,8 @@ def summarise(rows: list[dict[str, Any]], samples: list[dict[str, Any]], watch: 
           + ("never dropped" if not drops else f"dipped {len(drops)} times, at most {worst[1]} cells "
                                                  f"({100 * worst_share:.3f} % of the map) at {worst[0]} min"))
     print(f"memory after warm-up ({WARM_UP / 60:.0f} min): the per-minute low stayed within {first:.1f} MB before the "
-          f"restart and {second:.1f} MB after (transients of a fault up to {first_peak:.1f} / {second_peak:.1f} MB)")
+          f"restart and {second:.1f} MB after (transients of a fault up to {first_peak:.1f} / {second_peak:.1f} MB); "
+          f"the low of each {REPORT_EVERY / 60:.0f} minutes within {floor[0]:.1f} / {floor[1]:.1f} MB")
     print("largest map->odom gaps (sim s after the start of its run, the faults of the 2 s before): " +
           "; ".join(f"{m['gap_s']} s at {m['at_s']} ({', '.join(m['faults']) or 'none'})" for m in moments))
     print(f"map->odom at most {late:.3f} s late ({late / TF_PERIOD:.1f} periods); {calls} service calls answered, "

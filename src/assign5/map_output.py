@@ -40,6 +40,7 @@ class MapOutput:
         self.stamp: rospy.Time | None = None  # of the last processed scan
         self.entropy = 0.0
         self.last_stamp = -np.inf  # [s] of the last map published
+        self.unpublished = False   # updates since
         self.map_lock = threading.Lock()  # one map message built at a time: concurrent requests share it
         self.cache: tuple[tuple[int, int], OccupancyGrid, MapMetaData] | None = None
         self.known_cells = 0
@@ -51,16 +52,18 @@ class MapOutput:
         self.pub_debug = [rospy.Publisher(f"~particle_map_{i}", OccupancyGrid, queue_size=1, latch=True)
                           for i in range(cfg.debug_maps)]
 
-    def due(self, stamp: float) -> bool:
-        """Whether a scan at stamp [s] publishes the map (every map_update_interval)."""
-        if stamp - self.last_stamp >= self.cfg.map_update_interval:
-            self.last_stamp = stamp
+    def due(self, stamp: float, updated: bool) -> bool:
+        """Whether a scan at stamp [s] publishes the map: every map_update_interval while
+        updates wait to be published, so a robot that stops still shows its last ones."""
+        self.unpublished = self.unpublished or updated
+        if self.unpublished and stamp - self.last_stamp >= self.cfg.map_update_interval:
+            self.last_stamp, self.unpublished = stamp, False
             return True
         return False
 
     def forget(self) -> None:
         """The filter was reset: the next update publishes, and the path starts again."""
-        self.last_stamp = -np.inf
+        self.last_stamp, self.unpublished = -np.inf, False
         self.path_cache.forget()
 
     def copy(self, debug: int = 0) -> MapCopy:

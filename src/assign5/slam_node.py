@@ -149,23 +149,23 @@ class SlamNode:
                 # odometry between updates, as the offline tool's live_poses.txt
                 x, y, yaw = compose(self.slam.live_pose, inverse(self.front.scan_odom))
                 self.map_to_odom = (float(x), float(y), float(yaw))
-                if not info.processed:
-                    return
-                if info.refused:
-                    rospy.logerr(info.refused)
-                if info.clipped and not self.slam.cfg.map_grow and not self.warned_clip:
-                    self.warned_clip = True
-                    rospy.logwarn("the robot is near the map's edge and map_grow is false: beams past the "
-                                  "edge are clipped from now on (warned once)")
-                self.counts.updates += 1
-                self.maps.entropy = info.entropy
-                self.maps.stamp = msg.header.stamp
-                poses = self.slam.poses.copy()
-                mean, cov = self.slam.mean_pose(), self.slam.covariance()
+                if info.processed:
+                    if info.refused:
+                        rospy.logerr(info.refused)
+                    if info.clipped and not self.slam.cfg.map_grow and not self.warned_clip:
+                        self.warned_clip = True
+                        rospy.logwarn("the robot is near the map's edge and map_grow is false: beams past the "
+                                      "edge are clipped from now on (warned once)")
+                    self.counts.updates += 1
+                    self.maps.entropy = info.entropy
+                    self.maps.stamp = msg.header.stamp
+                    poses = self.slam.poses.copy()
+                    mean, cov = self.slam.mean_pose(), self.slam.covariance()
         finally:
             self.saves.write_reset_saves()
-        self._publish_update(msg.header.stamp, info, poses, mean, cov)
-        if self.maps.due(stamp):
+        if info.processed:
+            self._publish_update(msg.header.stamp, info, poses, mean, cov)
+        if self.maps.due(stamp, updated=info.processed):
             self.maps.publish()
 
     def _wait_for_odom(self, stamp: float) -> None:

@@ -212,7 +212,8 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     n = len(poses)
     if np.count_nonzero(beams.hit) < MIN_BEAMS:
         return Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
-    coarse = end_points(beams, spread_returns(beams, params.beams))
+    few = spread_returns(beams, params.beams)
+    coarse = end_points(beams, few)
     far = float(np.percentile(np.hypot(coarse[:, 0], coarse[:, 1]), 90))
     step = 2 * grid.resolution / max(far, 2 * grid.resolution)
     turns = np.arange(-1, 2) * step if params.theta_range <= 0 else \
@@ -222,8 +223,8 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     on_wall, _ = neighbourhood_flags(grid, cand, coarse)                 # (N, A, M)
     best = np.argmax(on_wall.sum(axis=2) - 1e-3 * np.abs(turns) / step, axis=1)
     start = cand[np.arange(n), best]
-    sel = spread_returns(beams, max(params.beams, params.icp_beams))
-    local = end_points(beams, sel)
+    sel = few if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
+    local = coarse if sel is few else end_points(beams, sel)
     centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
     pose, info = _icp(grid, start, local, surface_normals(beams, sel), centre, spread, params.icp_from_prior)
     occupied, free = neighbourhood_flags(grid, pose, local)
@@ -256,6 +257,10 @@ def _icp(grid: GridMaps, start: NDArray[np.float64], local: NDArray[np.float64],
     return np.where(second[:, None], pose[n:], pose[:n]), np.where(second[:, None, None], info[n:], info[:n])
 
 
+_AROUND = np.array([-1, 0, 1])
+_AROUND_Y, _AROUND_X = np.repeat(_AROUND, 3), np.tile(_AROUND, 3)   # the 3 x 3 cells, rows first
+
+
 def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64]
                         ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """(N, ..., M) each, for the end points local (M, 2) seen from the poses (N, ..., 3)
@@ -267,9 +272,10 @@ def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArra
     iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
     inside = (ix >= 1) & (ix < w - 1) & (iy >= 1) & (iy < h - 1)
     maps = np.arange(len(pose)).reshape((-1,) + (1,) * (x.ndim - 1))
-    d = np.array([-1, 0, 1])
-    cells = grid.values_around(maps, np.clip(iy, 1, h - 2), np.clip(ix, 1, w - 2), np.repeat(d, 3), np.tile(d, 3))
-    near = (cells > 0).any(axis=0)                                     # the 3 x 3 cells, first axis
+    np.minimum(np.maximum(ix, 1, out=ix), w - 2, out=ix)              # clamped inside
+    np.minimum(np.maximum(iy, 1, out=iy), h - 2, out=iy)
+    cells = grid.values_around(maps, iy, ix, _AROUND_Y, _AROUND_X)
+    near = cells.max(axis=0) > 0                                       # the 3 x 3 cells, first axis
     free = inside & ~near & (cells[4] < 0)                             # the end point's own cell
     return inside & near, free
 

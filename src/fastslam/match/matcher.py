@@ -191,7 +191,7 @@ def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tup
     maps = max(1, POOL_CELLS // ((y1 - y0) * (x1 - x0)))
     for a in range(0, n, maps):
         b = min(n, a + maps)
-        half[a:b], quarter[a:b] = pool(grid.crop(y0, y1, x0, x1, a, b))
+        pool(grid.crop(y0, y1, x0, x1, a, b), out=(half[a:b], quarter[a:b]))
     return half, quarter
 
 

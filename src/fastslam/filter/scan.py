@@ -1,6 +1,7 @@
 """A laser scan as the core sees it, and the beams an update uses."""
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -129,7 +130,15 @@ def spread_returns(beams: Beams, count: int) -> NDArray[np.intp]:
     sel = np.flatnonzero(beams.hit)
     if len(sel) <= count:
         return sel
-    return sel[np.unique(np.linspace(0, len(sel) - 1, count).astype(np.intp))]
+    return sel[_spread(len(sel), count)]
+
+
+@functools.lru_cache(maxsize=256)
+def _spread(n: int, count: int) -> NDArray[np.intp]:
+    """Which count of n items, evenly spread (read only): the same few (n, count) every scan."""
+    at = np.unique(np.linspace(0, n - 1, count).astype(np.intp))
+    at.flags.writeable = False
+    return at
 
 
 def returns_subset(beams: Beams, count: int) -> Beams:

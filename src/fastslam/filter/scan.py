@@ -87,10 +87,22 @@ def laser_problem(count: int, angle_min: float, angle_increment: float, range_mi
     return None
 
 
-def in_fov(angles: NDArray[np.float64], cfg: SlamConfig) -> NDArray[np.bool_]:
-    """(M,) which beams (base-frame directions) lie in the field of view fov_min..fov_max."""
-    deg = np.degrees(wrap_angle(angles))
-    return (deg >= cfg.fov_min) & (deg <= cfg.fov_max)
+def in_fov(angles: NDArray[np.float64], cfg: SlamConfig, beam_step: int = 1) -> NDArray[np.bool_]:
+    """(M,) which beams (base-frame directions) lie in the field of view fov_min..fov_max
+    (and, beam_step > 1, are every beam_step-th beam), read only."""
+    a = np.ascontiguousarray(angles, dtype=np.float64)
+    return _in_fov(a.tobytes(), cfg.fov_min, cfg.fov_max, beam_step)
+
+
+@functools.lru_cache(maxsize=16)
+def _in_fov(angles: bytes, fov_min: float, fov_max: float, beam_step: int) -> NDArray[np.bool_]:
+    """in_fov of the float64 angles in these bytes: a laser's angles are the same every scan."""
+    deg = np.degrees(wrap_angle(np.frombuffer(angles, dtype=np.float64)))
+    keep = (deg >= fov_min) & (deg <= fov_max)
+    if beam_step > 1:
+        keep &= (np.arange(len(keep)) % beam_step) == 0
+    keep.flags.writeable = False
+    return keep
 
 
 def fov_problem(scan: Scan, cfg: SlamConfig) -> str | None:
@@ -109,8 +121,7 @@ def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
     are no-returns that clear free space up to no_return_range; returns beyond the
     filter's max_range clear up to max_range and mark nothing.
     """
-    keep = in_fov(scan.angles, cfg)
-    keep &= (np.arange(len(keep)) % cfg.beam_step) == 0
+    keep = in_fov(scan.angles, cfg, cfg.beam_step)
     z = scan.ranges[keep]
     with np.errstate(invalid="ignore"):
         no_return = ~np.isfinite(z) | (z >= scan.range_max)

@@ -42,10 +42,20 @@ class Scan:
         An upside-down laser sweeps the other way round as seen from above.
         """
         r = np.asarray(ranges, dtype=np.float64)
-        a = angle_min + angle_increment * np.arange(len(r))
-        a = -a if upside_down else a
-        return cls(ranges=r, angles=wrap_angle(a + mount[2]), range_min=float(range_min),
-                   range_max=float(range_max), mount=(float(mount[0]), float(mount[1])), stamp=float(stamp))
+        return cls(ranges=r, angles=_beam_angles(angle_min, angle_increment, len(r), upside_down, mount[2]),
+                   range_min=float(range_min), range_max=float(range_max),
+                   mount=(float(mount[0]), float(mount[1])), stamp=float(stamp))
+
+
+@functools.lru_cache(maxsize=16)
+def _beam_angles(angle_min: float, angle_increment: float, count: int, upside_down: bool,
+                 yaw: float) -> NDArray[np.float64]:
+    """(count,) base-frame beam directions of Scan.from_laser, read only: the same every scan."""
+    a = angle_min + angle_increment * np.arange(count)
+    a = -a if upside_down else a
+    out = wrap_angle(a + yaw)
+    out.flags.writeable = False
+    return out
 
 
 @dataclass(frozen=True)

@@ -106,7 +106,9 @@ def _group_cells(lines: Lines, parts: list[NDArray[np.intp]], r: NDArray[np.floa
             flat = flat_inside(ln, lines.space.stride,
                                 scratch("raycast_flat", ln.steps.shape + (ln.k_max,), ln.base.dtype))
             free.append(free_of(flat, until[:, g], first_step[:, g]))
-            cells = np.take_along_axis(flat, np.maximum(hit_step[:, g], 0)[..., None], axis=2)[..., 0]
+            # each beam's cell at its hit step: one take (take_along_axis builds index grids)
+            k = np.maximum(hit_step[:, g], 0)
+            cells = flat.reshape(-1).take(np.arange(0, flat.size, flat.shape[2]).reshape(k.shape) + k)
             hit_cells.append(cells[hit_step[:, g] >= 0])
         else:
             rays = trace_lines(ln, float(r[bounds[i]]))

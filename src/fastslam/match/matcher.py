@@ -287,8 +287,9 @@ def neighbourhood_flags(grid: GridMaps, pose: NDArray[np.float64], local: NDArra
     whether its cell is known free with none occupied near (outside the grid: neither)."""
     h, w = grid.shape
     x, y = transform_points(pose, local)
-    ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
-    iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
+    # a cast truncates towards zero: floor's cell from 0 up, and below 1 either way (outside)
+    ix = ((x - grid.origin[0]) / grid.resolution).astype(np.intp)
+    iy = ((y - grid.origin[1]) / grid.resolution).astype(np.intp)
     inside = (ix >= 1) & (ix < w - 1) & (iy >= 1) & (iy < h - 1)
     maps = np.arange(len(pose)).reshape((-1,) + (1,) * (x.ndim - 1))
     np.minimum(np.maximum(ix, 1, out=ix), w - 2, out=ix)              # clamped inside

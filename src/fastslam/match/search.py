@@ -59,8 +59,9 @@ def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64],
     x, y = transform_points(cand, local)                                            # (N, A, M)
     # Cells near the edge are clamped so every shifted cell stays inside: end points
     # there are at most k cells off, in a part of the window nothing was seen in.
-    cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
-    cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
+    # (a cast truncates towards zero: floor's cell wherever the clamp at k >= 0 lets it through)
+    cx = np.minimum(np.maximum(((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
+    cy = np.minimum(np.maximum(((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
     d = np.arange(-k, k + 1)
     # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
     acc = np.int8 if len(local) < 128 else np.int16

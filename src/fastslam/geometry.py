@@ -78,16 +78,21 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
 # Closed forms for stacks of 3x3 matrices. numpy.linalg hands each matrix to LAPACK,
 # whose results on Debian's reference build vary in the last bit with the alignment of
 # its work buffer: the same inputs gave different poses from run to run.
+# The adjugate's entries, row by row: co[i] = m[P[i]] m[Q[i]] - m[R[i]] m[S[i]] (m flat, row-major):
+# each the same products and difference as written out, in four gathers and three calls.
+_ADJUGATE = tuple(np.array(v, dtype=np.intp) for v in zip(
+    (4, 8, 5, 7), (2, 7, 1, 8), (1, 5, 2, 4),
+    (5, 6, 3, 8), (0, 8, 2, 6), (2, 3, 0, 5),
+    (3, 7, 4, 6), (1, 6, 0, 7), (0, 4, 1, 3)))
+
+
 def inv3(m: NDArray[np.float64]) -> NDArray[np.float64]:
     """(..., 3, 3) inverses by the adjugate."""
-    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
-    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
-    g, h, k = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
-    co = np.stack([e * k - f * h, c * h - b * k, b * f - c * e,
-                   f * g - d * k, a * k - c * g, c * d - a * f,
-                   d * h - e * g, b * g - a * h, a * e - b * d], axis=-1).reshape(m.shape)
-    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
-    return co / det[..., None, None]
+    f = m.reshape(m.shape[:-2] + (9,))
+    p, q, r, s = _ADJUGATE
+    co = f[..., p] * f[..., q] - f[..., r] * f[..., s]
+    det = f[..., 0] * co[..., 0] + f[..., 1] * co[..., 3] + f[..., 2] * co[..., 6]
+    return co.reshape(m.shape) / det[..., None, None]
 
 
 def solve3(m: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:

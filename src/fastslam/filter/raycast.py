@@ -107,7 +107,10 @@ def free_of(flat: NDArray[np.integer[Any]], until: NDArray[np.int64], first_step
     table = _prefix_masks(flat.shape[2])
     mask = np.take(table, until, axis=0, out=scratch("raycast_mask", flat.shape, np.bool_), mode="clip")
     if first_step.any():
-        mask &= ~np.take(table, first_step, axis=0, mode="clip")
+        # less the rows k < min(first_step, until): inside the first, so one xor drops them
+        below = np.take(table, np.minimum(first_step, until), axis=0, mode="clip",
+                        out=scratch("raycast_mask_below", flat.shape, np.bool_))
+        np.bitwise_xor(mask, below, out=mask)
     if valid is not None:
         mask &= valid
     return flat[mask]  # boolean indexing: much faster than np.compress with out

@@ -85,6 +85,11 @@ class Lines:
         k, (h, w) = self.k_max, self.shape
         return bool(self.start.min() >= k and self.start[:, 0].max() + k < w and self.start[:, 1].max() + k < h)
 
+    def particles(self, first: int, stop: int) -> Lines:
+        """The lines of particles first..stop-1 (not yet in a space)."""
+        return Lines(start=self.start[first:stop], steps=self.steps[first:stop], slope=self.slope[first:stop],
+                     shape=self.shape)
+
     def beams(self, sel: slice) -> Lines:
         """The lines of the beams sel."""
         return Lines(start=self.start, steps=self.steps[:, sel], slope=self.slope[:, sel],

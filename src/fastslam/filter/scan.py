@@ -1,6 +1,7 @@
 """A laser scan as the core sees it, and the beams an update uses."""
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -41,10 +42,20 @@ class Scan:
         An upside-down laser sweeps the other way round as seen from above.
         """
         r = np.asarray(ranges, dtype=np.float64)
-        a = angle_min + angle_increment * np.arange(len(r))
-        a = -a if upside_down else a
-        return cls(ranges=r, angles=wrap_angle(a + mount[2]), range_min=float(range_min),
-                   range_max=float(range_max), mount=(float(mount[0]), float(mount[1])), stamp=float(stamp))
+        return cls(ranges=r, angles=_beam_angles(angle_min, angle_increment, len(r), upside_down, mount[2]),
+                   range_min=float(range_min), range_max=float(range_max),
+                   mount=(float(mount[0]), float(mount[1])), stamp=float(stamp))
+
+
+@functools.lru_cache(maxsize=16)
+def _beam_angles(angle_min: float, angle_increment: float, count: int, upside_down: bool,
+                 yaw: float) -> NDArray[np.float64]:
+    """(count,) base-frame beam directions of Scan.from_laser, read only: the same every scan."""
+    a = angle_min + angle_increment * np.arange(count)
+    a = -a if upside_down else a
+    out = wrap_angle(a + yaw)
+    out.flags.writeable = False
+    return out
 
 
 @dataclass(frozen=True)
@@ -86,10 +97,22 @@ def laser_problem(count: int, angle_min: float, angle_increment: float, range_mi
     return None
 
 
-def in_fov(angles: NDArray[np.float64], cfg: SlamConfig) -> NDArray[np.bool_]:
-    """(M,) which beams (base-frame directions) lie in the field of view fov_min..fov_max."""
-    deg = np.degrees(wrap_angle(angles))
-    return (deg >= cfg.fov_min) & (deg <= cfg.fov_max)
+def in_fov(angles: NDArray[np.float64], cfg: SlamConfig, beam_step: int = 1) -> NDArray[np.bool_]:
+    """(M,) which beams (base-frame directions) lie in the field of view fov_min..fov_max
+    (and, beam_step > 1, are every beam_step-th beam), read only."""
+    a = np.ascontiguousarray(angles, dtype=np.float64)
+    return _in_fov(a.tobytes(), cfg.fov_min, cfg.fov_max, beam_step)
+
+
+@functools.lru_cache(maxsize=16)
+def _in_fov(angles: bytes, fov_min: float, fov_max: float, beam_step: int) -> NDArray[np.bool_]:
+    """in_fov of the float64 angles in these bytes: a laser's angles are the same every scan."""
+    deg = np.degrees(wrap_angle(np.frombuffer(angles, dtype=np.float64)))
+    keep = (deg >= fov_min) & (deg <= fov_max)
+    if beam_step > 1:
+        keep &= (np.arange(len(keep)) % beam_step) == 0
+    keep.flags.writeable = False
+    return keep
 
 
 def fov_problem(scan: Scan, cfg: SlamConfig) -> str | None:
@@ -108,8 +131,7 @@ def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
     are no-returns that clear free space up to no_return_range; returns beyond the
     filter's max_range clear up to max_range and mark nothing.
     """
-    keep = in_fov(scan.angles, cfg)
-    keep &= (np.arange(len(keep)) % cfg.beam_step) == 0
+    keep = in_fov(scan.angles, cfg, cfg.beam_step)
     z = scan.ranges[keep]
     with np.errstate(invalid="ignore"):
         no_return = ~np.isfinite(z) | (z >= scan.range_max)
@@ -129,7 +151,15 @@ def spread_returns(beams: Beams, count: int) -> NDArray[np.intp]:
     sel = np.flatnonzero(beams.hit)
     if len(sel) <= count:
         return sel
-    return sel[np.unique(np.linspace(0, len(sel) - 1, count).astype(np.intp))]
+    return sel[_spread(len(sel), count)]
+
+
+@functools.lru_cache(maxsize=256)
+def _spread(n: int, count: int) -> NDArray[np.intp]:
+    """Which count of n items, evenly spread (read only): the same few (n, count) every scan."""
+    at = np.unique(np.linspace(0, n - 1, count).astype(np.intp))
+    at.flags.writeable = False
+    return at
 
 
 def returns_subset(beams: Beams, count: int) -> Beams:

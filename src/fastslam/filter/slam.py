@@ -79,6 +79,7 @@ class FastSlam:
                              l_limit=max(-cfg.l_min, cfg.l_max))
         self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)
         self._match_params = MatchParams.from_config(cfg)
+        self._track_params = replace(self._match_params, beams=cfg.track_beams)   # track_scans' matches
         self.poses = np.zeros((n, 3))
         spread = np.array([cfg.init_sigma_xy, cfg.init_sigma_xy, cfg.init_sigma_theta])
         if np.any(spread > 0):
@@ -200,7 +201,7 @@ class FastSlam:
                else odometry_std(self._match_odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
         self._match_odom = odom
         one = predicted[None, :]
-        start, params, prior = match_request(cfg, replace(self._match_params, beams=cfg.track_beams), one, one, std)
+        start, params, prior = match_request(cfg, self._track_params, one, one, std)
         assert prior is not None
         grid, beams = self.grid.view(self.best), select_beams(scan, cfg)
         found = (refine_poses(grid, start, beams, params, prior) if cfg.track_search == "refine"

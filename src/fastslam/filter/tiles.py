@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fastslam.filter.grid import LOGODDS_DTYPE, CellSpace, GridMaps, _read_only
+from fastslam.filter.grid import FEW_CELLS, LOGODDS_DTYPE, CellSpace, GridMaps, _read_only
 from fastslam.filter.scratch import scratch
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -240,10 +240,27 @@ class TileMaps(GridMaps):
         (ty, tx), (oy, ox), (sy, sx) = self.tile, self.offset, (self._ly, self._lx)
         _, th, tw = self.table.shape
         dy_, dx_ = np.asarray(dy, dtype=np.intp), np.asarray(dx, dtype=np.intp)
-        n_ = np.asarray(n, dtype=np.intp)
-        shape = np.broadcast(n_, np.asarray(iy), np.asarray(ix)).shape
-        ly = np.add(np.broadcast_to(iy, shape), oy, dtype=np.intp)     # lattice cells of the points
-        lx = np.add(np.broadcast_to(ix, shape), ox, dtype=np.intp)
+        n_, iy_, ix_ = np.asarray(n, dtype=np.intp), np.asarray(iy), np.asarray(ix)
+        shape = np.broadcast(n_, iy_, ix_).shape
+        # lattice cells of the points (written into full-shape arrays: no broadcast_to,
+        # whose Python cost is most of a small call's)
+        ly = np.add(iy_, oy, out=np.empty(shape, dtype=np.intp), dtype=np.intp)
+        lx = np.add(ix_, ox, out=np.empty(shape, dtype=np.intp), dtype=np.intp)
+        if ly.size * len(dy_) <= FEW_CELLS:   # few cells: each one's tile looked up, in fewer calls
+            ey = ly + dy_.reshape((-1,) + (1,) * ly.ndim)                            # (K,) + shape
+            ex = lx + dx_.reshape((-1,) + (1,) * lx.ndim)
+            slot = ey >> sy
+            slot *= tw
+            slot += ex >> sx
+            slot += n_ * (th * tw)
+            pos = self.table.reshape(-1).take(slot).astype(np.intp)
+            pos <<= sy + sx
+            ey &= ty - 1
+            ey <<= sx
+            pos |= ey
+            ex &= tx - 1
+            pos |= ex
+            return self.pool.tiles.reshape(-1).take(pos, out=out)
         slot = ly >> sy
         slot *= tw
         slot += lx >> sx
@@ -253,16 +270,18 @@ class TileMaps(GridMaps):
         ry, rx = ly & (ty - 1), lx & (tx - 1)
         base |= ry << sx
         base |= rx
-        inner = ry >= -int(dy_.min())
-        inner &= ry < ty - int(dy_.max())
-        inner &= rx >= -int(dx_.min())
-        inner &= rx < tx - int(dx_.max())
+        dys, dxs = dy_.tolist(), dx_.tolist()
+        inner = ry >= -min(dys)
+        inner &= ry < ty - max(dys)
+        inner &= rx >= -min(dxs)
+        inner &= rx < tx - max(dxs)
         pos = base[None] + (dy_ * tx + dx_).reshape((-1,) + (1,) * base.ndim)      # (K,) + shape
         edge = np.flatnonzero(~inner)
         if len(edge):
             ey = ly.reshape(-1)[edge] + dy_[:, None]                                # (K, E)
             ex = lx.reshape(-1)[edge] + dx_[:, None]
-            ids = self.table.reshape(-1).take(self._slots(np.broadcast_to(n_, shape).reshape(-1)[edge], ey, ex))
+            n_edge = (n_ if n_.shape == shape else np.broadcast_to(n_, shape)).reshape(-1)[edge]
+            ids = self.table.reshape(-1).take(self._slots(n_edge, ey, ex))
             pos.reshape(len(dy_), -1)[:, edge] = self._positions(ids, ey, ex)
         return self.pool.tiles.reshape(-1).take(pos, out=out)
 
@@ -476,6 +495,7 @@ class TileLookup(CellSpace):
 
     def writable(self, flat: NDArray[np.integer[Any]]) -> NDArray[np.integer[Any]]:
         slot, within = self._split(flat)
+        slot = slot.astype(np.intp)   # numpy indexes with intp twice as fast as with int32
         touched = np.zeros(self.ids.size, dtype=bool)
         touched[slot] = True
         where = np.flatnonzero(touched)

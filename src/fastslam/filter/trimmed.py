@@ -60,22 +60,25 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
     per_particle = max(longest, int(len(order) * (float(np.mean(reach[order])) / grid.resolution + 2)))
     per_chunk = max(1, TRIM_CHUNK_ELEMENTS // per_particle)
     h, w = grid.shape
+    # the lines and the marked end cells of every particle at once (small arrays: fewer calls)
+    every_line = beam_lines(grid, origins, angles[:, cols], r)
+    every_marked = np.zeros((n_p, 0, 2), dtype=np.int64)
+    every_ok = np.zeros((n_p, 0), dtype=bool)
+    if len(marked):
+        a_m = angles[:, marked]
+        ends = origins[:, None, :] + ranges[marked, None] * np.stack([np.cos(a_m), np.sin(a_m)], -1)
+        every_marked = grid.world_to_cell(ends)                                   # (N, K, 2)
+        every_ok = ((every_marked[..., 0] >= 0) & (every_marked[..., 0] < w) & (every_marked[..., 1] >= 0)
+                    & (every_marked[..., 1] < h))
     for a in range(0, n_p, per_chunk):
         b = min(n_p, a + per_chunk)
-        lines = beam_lines(grid, origins[a:b], angles[a:b][:, cols], r)
+        lines = every_line.particles(a, b)
         lo, hi = lines.box()
-        marked_cells = np.zeros((b - a, 0, 2), dtype=np.int64)
-        ok = np.zeros((b - a, 0), dtype=bool)
-        if len(marked):
-            a_m = angles[a:b][:, marked]
-            ends = origins[a:b, None, :] + ranges[marked, None] * np.stack([np.cos(a_m), np.sin(a_m)], -1)
-            marked_cells = grid.world_to_cell(ends)                           # (n, K, 2)
-            ok = ((marked_cells[..., 0] >= 0) & (marked_cells[..., 0] < w) & (marked_cells[..., 1] >= 0)
-                  & (marked_cells[..., 1] < h))
-            if ok.any():
-                inside = marked_cells[ok]
-                lo = (min(lo[0], int(inside[:, 0].min())), min(lo[1], int(inside[:, 1].min())))
-                hi = (max(hi[0], int(inside[:, 0].max()) + 1), max(hi[1], int(inside[:, 1].max()) + 1))
+        marked_cells, ok = every_marked[a:b], every_ok[a:b]
+        if ok.any():
+            inside = marked_cells[ok]
+            lo = (min(lo[0], int(inside[:, 0].min())), min(lo[1], int(inside[:, 1].min())))
+            hi = (max(hi[0], int(inside[:, 0].max()) + 1), max(hi[1], int(inside[:, 1].max()) + 1))
         space = grid.cells(a, b, lo, hi, traced=per_particle * (b - a))
         free_cells, hit_cells = _group_cells(lines.in_space(space), parts, r, ranges[cols], hit[cols],
                                              free_range[cols], range_min=range_min)
@@ -106,7 +109,9 @@ def _group_cells(lines: Lines, parts: list[NDArray[np.intp]], r: NDArray[np.floa
             flat = flat_inside(ln, lines.space.stride,
                                 scratch("raycast_flat", ln.steps.shape + (ln.k_max,), ln.base.dtype))
             free.append(free_of(flat, until[:, g], first_step[:, g]))
-            cells = np.take_along_axis(flat, np.maximum(hit_step[:, g], 0)[..., None], axis=2)[..., 0]
+            # each beam's cell at its hit step: one take (take_along_axis builds index grids)
+            k = np.maximum(hit_step[:, g], 0)
+            cells = flat.reshape(-1).take(np.arange(0, flat.size, flat.shape[2]).reshape(k.shape) + k)
             hit_cells.append(cells[hit_step[:, g] >= 0])
         else:
             rays = trace_lines(ln, float(r[bounds[i]]))

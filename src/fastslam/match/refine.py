@@ -21,6 +21,9 @@ ICP_RADIUS = 2         # cells searched around each end point for occupied ones
 ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
 ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
 NORMAL_GAP = 0.3       # [m] neighbouring returns farther apart give no surface normal
+_OFFSETS = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
+_KERNEL_X, _KERNEL_Y = (v.reshape(-1) for v in np.meshgrid(_OFFSETS, _OFFSETS))   # the kernel's cells, rows first
+_OFFSETS_32 = _OFFSETS.astype(np.float32)[:, None, None]                           # (K, 1, 1) float32 arithmetic
 
 
 def _bilinear_scores(grid: GridMaps, cand: NDArray[np.float64], local: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -128,42 +131,52 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
     pose before the last step (an end point with no occupied cell in reach costs as
     much as one at the kernel's edge), for choosing among starts.
     """
-    n = len(pose)
+    n, m = len(pose), len(local)
     res = grid.resolution
     h, w = grid.shape
-    d = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
-    ox, oy = (v.reshape(-1) for v in np.meshgrid(d, d))
-    kk = len(d)
-    dk = d.astype(np.float32)[:, None, None]                           # (K, 1, 1) float32 arithmetic
+    ox, oy, dk = _KERNEL_X, _KERNEL_Y, _OFFSETS_32
+    kk = len(dk)
     gain = np.float32(-0.5 / ICP_SPREAD ** 2)
-    kernel = np.empty((len(ox), n, len(local)), dtype=np.int8)
+    kernel = np.empty((len(ox), n, m), dtype=np.int8)
     # prior information in the map frame: R diag(1/sa^2, 1/sc^2) R^T, and 1/st^2
-    c0, s0 = cos_sin(centre[:, 2])
-    ia, ic = 1.0 / spread[0] ** 2, 1.0 / spread[1] ** 2
-    p_xx, p_yy, p_xy = ia * c0 ** 2 + ic * s0 ** 2, ia * s0 ** 2 + ic * c0 ** 2, (ia - ic) * c0 * s0
-    p_tt = 1.0 / spread[2] ** 2
+    prior = prior_information(centre, spread)
+    p_xx, p_yy, p_xy, p_tt = prior[:, 0, 0], prior[:, 1, 1], prior[:, 0, 1], prior[:, 2, 2]
     has_normal = np.any(normals != 0, axis=1)
     pose = pose.copy()
     map_of = np.arange(n) if maps is None else np.asarray(maps, dtype=np.intp)
-    particle = np.broadcast_to(map_of[:, None], (n, len(local)))
+    particle = np.broadcast_to(map_of[:, None], (n, m))
     cap = (ICP_RADIUS * grid.resolution / ICP_SIGMA) ** 2                 # cost of an end point not found
     cell: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None     # the kernel's centre cells so far
+    # The loop is numpy calls on small arrays (one particle's 180 end points between
+    # updates): the same arithmetic as one expression per term, in fewer calls.
+    lx, ly, n0, n1 = (np.ascontiguousarray(v) for v in (local[:, 0], local[:, 1], normals[:, 0], normals[:, 1]))
+    sums = np.empty((9, n, m))     # the end points' terms of the Hessian and gradient, summed in one call
+    a, e, b, h02, h12, h22, fx, fy, g2 = sums
+    tmp = np.empty((n, m))
+    with_prior = np.zeros((3, 3), dtype=bool)
+    with_prior[[0, 1, 0, 1, 2], [0, 1, 1, 0, 2]] = True
     for _ in range(ICP_ITERATIONS):
         c, s = cos_sin(pose[:, 2, None])
-        rx = c * local[:, 0] - s * local[:, 1]                         # (N, M) end point - position
-        ry = s * local[:, 0] + c * local[:, 1]
+        rx = c * lx - s * ly                                           # (N, M) end point - position
+        ry = s * lx + c * ly
         u = (pose[:, 0, None] + rx - grid.origin[0]) / res
         v = (pose[:, 1, None] + ry - grid.origin[1]) / res
         # cells within the kernel; clamped so every kernel cell is inside (the edge
-        # cells of the grid were never seen: nothing occupied to find there)
-        iu = np.clip(np.floor(u).astype(np.intp), ICP_RADIUS, w - 1 - ICP_RADIUS)
-        iv = np.clip(np.floor(v).astype(np.intp), ICP_RADIUS, h - 1 - ICP_RADIUS)
+        # cells of the grid were never seen: nothing occupied to find there); a cast
+        # truncates towards zero, floor's value wherever the clamp lets it through
+        iu = u.astype(np.intp)
+        np.minimum(np.maximum(iu, ICP_RADIUS, out=iu), w - 1 - ICP_RADIUS, out=iu)
+        iv = v.astype(np.intp)
+        np.minimum(np.maximum(iv, ICP_RADIUS, out=iv), h - 1 - ICP_RADIUS, out=iv)
         if cell is None:
             grid.values_around(particle, iv, iu, oy, ox, out=kernel)   # kernel first: sums add whole slabs
         else:   # a later step moves few end points to another cell: only theirs are read again
-            moved = (iu != cell[1]) | (iv != cell[0])
-            if moved.any():
-                kernel[:, moved] = grid.values_around(particle[moved], iv[moved], iu[moved], oy, ox)
+            moved = iu != cell[1]
+            moved |= iv != cell[0]
+            at = np.flatnonzero(moved)
+            if len(at):
+                kernel.reshape(len(ox), -1)[:, at] = grid.values_around(
+                    map_of[at // m], iv.reshape(-1)[at], iu.reshape(-1)[at], oy, ox)
         cell = (iv, iu)
         ex = (u - iu - 0.5).astype(np.float32) - dk                    # (K, N, M) end point - centre [cells]
         ey = (v - iv - 0.5).astype(np.float32) - dk
@@ -179,29 +192,36 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
         gx = (by_column * ex).sum(axis=0) / total                      # target offsets [m]
         gy = (by_row * ey).sum(axis=0) / total
         # weights W = n n^T / sigma^2 on a surface, I / sigma^2 without a normal
-        nx = c * normals[:, 0] - s * normals[:, 1]                     # normals in the map frame
-        ny = s * normals[:, 0] + c * normals[:, 1]
+        nx = c * n0 - s * n1                                           # normals in the map frame
+        ny = s * n0 + c * n1
         k = found / ICP_SIGMA ** 2
-        a = np.where(has_normal, nx * nx, 1.0) * k
-        b = np.where(has_normal, nx * ny, 0.0) * k
-        e = np.where(has_normal, ny * ny, 1.0) * k
+        np.multiply(np.where(has_normal, nx * nx, 1.0), k, out=a)
+        np.multiply(np.where(has_normal, nx * ny, 0.0), k, out=b)
+        np.multiply(np.where(has_normal, ny * ny, 1.0), k, out=e)
         # normal equations with J = [[1, 0, -ry], [0, 1, rx]] per end point
-        fx, fy = a * gx + b * gy, b * gx + e * gy                      # W err
+        np.multiply(a, gx, out=fx)                                     # W err
+        fx += np.multiply(b, gy, out=tmp)
+        np.multiply(b, gx, out=fy)
+        fy += np.multiply(e, gy, out=tmp)
+        a_ry, e_rx = a * ry, e * rx
+        np.subtract(np.multiply(b, rx, out=h02), a_ry, out=h02)
+        np.subtract(e_rx, np.multiply(b, ry, out=h12), out=h12)
+        np.multiply(a_ry, ry, out=h22)
+        h22 -= 2 * b * rx * ry
+        h22 += np.multiply(e_rx, rx, out=tmp)
+        np.subtract(np.multiply(rx, fy, out=g2), np.multiply(ry, fx, out=tmp), out=g2)
+        total_terms = sums.sum(axis=2)                                 # (9, N), each as its row's own sum
         off = pose - centre
         off[:, 2] = wrap_angle(off[:, 2])
-        hess = np.empty((n, 3, 3))
-        hess[:, 0, 0] = a.sum(1) + p_xx
-        hess[:, 1, 1] = e.sum(1) + p_yy
-        hess[:, 0, 1] = hess[:, 1, 0] = b.sum(1) + p_xy
-        hess[:, 0, 2] = hess[:, 2, 0] = (b * rx - a * ry).sum(1)
-        hess[:, 1, 2] = hess[:, 2, 1] = (e * rx - b * ry).sum(1)
-        hess[:, 2, 2] = (a * ry * ry - 2 * b * rx * ry + e * rx * rx).sum(1) + p_tt
-        grad = np.stack([fx.sum(1) + p_xx * off[:, 0] + p_xy * off[:, 1],
-                         fy.sum(1) + p_xy * off[:, 0] + p_yy * off[:, 1],
-                         (rx * fy - ry * fx).sum(1) + p_tt * off[:, 2]], axis=1)
-        cost = ((gx * fx + gy * fy).sum(1) + cap * np.count_nonzero(~found, axis=1)
-                + p_xx * off[:, 0] ** 2 + 2 * p_xy * off[:, 0] * off[:, 1] + p_yy * off[:, 1] ** 2
-                + p_tt * off[:, 2] ** 2)
+        hess = total_terms[[0, 2, 3, 2, 1, 4, 3, 4, 5]].T.reshape(n, 3, 3)
+        np.add(hess, prior, out=hess, where=with_prior)
+        grad = total_terms[6:].T.copy()
+        grad[:, :2] += prior[:, :2, 0] * off[:, :1]
+        grad[:, :2] += prior[:, :2, 1] * off[:, 1:2]
+        grad[:, 2] += p_tt * off[:, 2]
         pose -= solve3(hess, grad)
+    cost = ((gx * fx + gy * fy).sum(1) + cap * np.count_nonzero(~found, axis=1)
+            + p_xx * off[:, 0] ** 2 + 2 * p_xy * off[:, 0] * off[:, 1] + p_yy * off[:, 1] ** 2
+            + p_tt * off[:, 2] ** 2)
     pose[:, 2] = wrap_angle(pose[:, 2])
     return pose, hess, cost

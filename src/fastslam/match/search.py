@@ -10,7 +10,7 @@ once per update, only in the window the scans of all particles can reach.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Tuple
 
 import numpy as np
 
@@ -20,6 +20,8 @@ from fastslam.geometry import cos_sin, transform_points, wrap_angle
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
+
+    Pooled = Tuple[NDArray[np.int8], NDArray[np.int8]]   # (2x2, 4x4 cells)
 
 
 POOL = 4               # coarse level: cells per side of a pooled cell
@@ -57,8 +59,9 @@ def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64],
     x, y = transform_points(cand, local)                                            # (N, A, M)
     # Cells near the edge are clamped so every shifted cell stays inside: end points
     # there are at most k cells off, in a part of the window nothing was seen in.
-    cx = np.minimum(np.maximum(np.floor((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
-    cy = np.minimum(np.maximum(np.floor((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
+    # (a cast truncates towards zero: floor's cell wherever the clamp at k >= 0 lets it through)
+    cx = np.minimum(np.maximum(((x - origin[0]) / cell).astype(np.int64), k), wv - 1 - k)
+    cy = np.minimum(np.maximum(((y - origin[1]) / cell).astype(np.int64), k), hv - 1 - k)
     d = np.arange(-k, k + 1)
     # Scores of 0/1 cells over M end points: M < 2**7 fits int8, M < 2**15 int16.
     acc = np.int8 if len(local) < 128 else np.int16
@@ -131,19 +134,23 @@ def _nats(scores: NDArray[np.int64], beams: int) -> NDArray[np.float64]:
     return (scores - top) / top * beams
 
 
-def pool_occupied(level: NDArray[np.int8], above: int = 0) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+def pool_occupied(level: NDArray[np.int8], above: int = 0, out: Pooled | None = None) -> Pooled:
     """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
-    2x2 and 4x4 block is occupied (log-odds above `above`; H, W multiples of 4).
+    2x2 and 4x4 block is occupied (log-odds above `above`; H, W multiples of 4); out:
+    the arrays to write them to.
 
     Any cell above `above` is the block's maximum above it (see _block_max).
     """
     m2 = _block_max(level, "pool2")
-    return (m2 > above).view(np.int8), (_block_max(m2, "pool4") > above).view(np.int8)
+    half, quarter = (None, None) if out is None else (out[0].view(np.bool_), out[1].view(np.bool_))
+    return (np.greater(m2, above, out=half).view(np.int8),
+            np.greater(_block_max(m2, "pool4"), above, out=quarter).view(np.int8))
 
 
-def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+def pool_signed(level: NDArray[np.int8], out: Pooled | None = None) -> Pooled:
     """(N, H, W) -> (N, H/2, W/2) and (N, H/4, W/4): +1 where any cell of the 2x2 or 4x4
-    block is occupied, -1 where every cell is known free, 0 otherwise (H, W multiples of 4).
+    block is occupied, -1 where every cell is known free, 0 otherwise (H, W multiples of 4);
+    out: the arrays to write them to.
 
     An end point on a free block contradicts the map (the beam would have ended
     there before): summed, these flags score a candidate by the end points it puts on
@@ -152,7 +159,8 @@ def pool_signed(level: NDArray[np.int8]) -> tuple[NDArray[np.int8], NDArray[np.i
     maximum: above 0 if any cell is occupied, below 0 if every cell is free.
     """
     m2 = _block_max(level, "pool2")
-    return np.sign(m2), np.sign(_block_max(m2, "pool4"))
+    half, quarter = (None, None) if out is None else out
+    return np.sign(m2, out=half), np.sign(_block_max(m2, "pool4"), out=quarter)
 
 
 def _block_max(level: NDArray[np.int8], key: str) -> NDArray[np.int8]:

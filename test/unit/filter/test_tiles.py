@@ -158,6 +158,28 @@ def test_reads_through_the_api_equal_the_dense_grids():
     assert copied.values(0, 0, 0) == 99 and tiled.values(0, 0, 0) == dense.values(0, 0, 0)
 
 
+@pytest.mark.parametrize("few", [0, 1 << 30])
+def test_values_around_reads_the_dense_grids_cells_by_tile_or_cell_by_cell(few, monkeypatch):
+    # few = 0: each point's kernel from its own cell's tile (and edge points cell by cell);
+    # else every cell's tile looked up: the same cells, kernels inside a tile or across its edges
+    monkeypatch.setattr("fastslam.filter.tiles.FEW_CELLS", few)
+    rng = np.random.default_rng(1)
+    dense, tiled = GridMaps(3, (40, 50), 0.1, (0.0, 0.0)), TileMaps(3, (40, 50), 0.1, (0.0, 0.0), tile=(8, 16))
+    n, iy, ix = rng.integers(0, 3, 2000), rng.integers(0, 40, 2000), rng.integers(0, 50, 2000)
+    v = rng.integers(-127, 128, 2000)
+    dense.put(n, iy, ix, v)
+    tiled.put(n, iy, ix, v)
+    tiled.grow_to(-0.3, -0.5, 5.2, 4.1, fraction=0.0)     # the lattice offset no longer zero
+    dense.grow_to(-0.3, -0.5, 5.2, 4.1, fraction=0.0)
+    h, w = tiled.shape
+    d = np.arange(-2, 3)
+    dy, dx = (a.ravel() for a in np.meshgrid(d, d, indexing="ij"))
+    for q in ((np.arange(3)[:, None], rng.integers(2, h - 2, (3, 40)), rng.integers(2, w - 2, (3, 40))),
+              (np.arange(3)[:, None, None], rng.integers(2, h - 2, (4, 7)), rng.integers(2, w - 2, (3, 4, 7))),
+              (rng.integers(0, 3, 9), rng.integers(2, h - 2, 9), rng.integers(2, w - 2, 9))):
+        np.testing.assert_array_equal(tiled.values_around(*q, dy, dx), dense.values_around(*q, dy, dx))
+
+
 @pytest.mark.parametrize("way", [TilePatch, TileLookup])
 def test_the_ray_tracer_writes_through_either_way_as_into_dense_grids(way, monkeypatch):
     monkeypatch.setattr("fastslam.filter.tiles.PATCH_FACTOR", 1e9 if way is TilePatch else 0.0)

@@ -3,13 +3,14 @@ hill climb or ICP), its fall-backs, and its parameters from the configuration.""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
 from fastslam.match import MatchParams, match_poses, refine_poses
-from fastslam.match.matcher import neighbourhood_flags
+from fastslam.match.matcher import far_range, neighbourhood_flags
 
 ANGLES = np.radians(np.arange(360.0))
 
@@ -176,3 +177,14 @@ def test_refine_poses_finds_a_heading_beyond_icps_reach(mapped_room, scan360):
                              MatchParams.from_config(cfg), (start, np.array([0.05, 0.05, 0.2])))
         errors.append(abs(match.poses[0, 2] - truth[2]))
     assert errors[0] < 0.002 and errors[1] > 0.1   # measured 0.0003 and 0.19 rad
+
+
+def test_far_range_is_the_90th_percentile_of_the_ranges_as_numpy_gives_it():
+    angles = np.linspace(-1.0, 1.0, 10)
+    ranges = np.arange(1.0, 11.0)                      # (10 - 1) * 0.9 = 8.1: 9 m and a tenth of the way to 10
+    local = np.stack([ranges * np.cos(angles), ranges * np.sin(angles)], axis=1)
+    assert far_range(local) == pytest.approx(9.1, abs=1e-12)
+    rng = np.random.default_rng(0)
+    for m in (2, 3, 37, 60, 180, 361):
+        local = rng.normal(0.0, 5.0, (m, 2))
+        assert far_range(local) == float(np.percentile(np.hypot(local[:, 0], local[:, 1]), 90))   # to the bit

@@ -25,7 +25,7 @@ from clocked import Connected  # this folder: rostest runs the test from here
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import LaserScan
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
 from fastslam.sim.lidar import cast_rays
@@ -283,6 +283,9 @@ class Robustness(unittest.TestCase):
             self.assertFalse(res.success)
             self.assertTrue(res.message.startswith("nothing mapped yet: no scan processed (0 received on /nothing"),
                             res.message)
+            # the service is up before the node has finished starting; ~stats comes last. A
+            # SIGTERM into rospy's start-up can hang it on its own lock (rospy's, not this test's subject)
+            rospy.wait_for_message("idle_slam/stats", String, timeout=30)
         finally:
             proc.terminate()
             proc.communicate(timeout=30)

@@ -149,24 +149,27 @@ class SlamNode:
                 # odometry between updates, as the offline tool's live_poses.txt
                 x, y, yaw = compose(self.slam.live_pose, inverse(self.front.scan_odom))
                 self.map_to_odom = (float(x), float(y), float(yaw))
-                if info.processed:
-                    if info.refused:
-                        rospy.logerr(info.refused)
-                    if info.clipped and not self.slam.cfg.map_grow and not self.warned_clip:
-                        self.warned_clip = True
-                        rospy.logwarn("the robot is near the map's edge and map_grow is false: beams past the "
-                                      "edge are clipped from now on (warned once)")
-                    self.counts.updates += 1
-                    self.maps.entropy = info.entropy
-                    self.maps.stamp = msg.header.stamp
-                    poses = self.slam.poses.copy()
-                    mean, cov = self.slam.mean_pose(), self.slam.covariance()
+                update = self._take_update(info, msg.header.stamp) if info.processed else None
         finally:
             self.saves.write_reset_saves()
-        if info.processed:
-            self._publish_update(msg.header.stamp, info, poses, mean, cov)
-        if self.maps.due(stamp, updated=info.processed):
+        if update is not None:
+            self._publish_update(msg.header.stamp, info, *update)
+        if self.maps.due(stamp, updated=update is not None):
             self.maps.publish()
+
+    def _take_update(self, info, stamp: rospy.Time) -> tuple:
+        """Under the lock, after an update: its warnings and counts, and copies of what
+        its messages show (poses, mean, covariance), built after the lock is released."""
+        if info.refused:
+            rospy.logerr(info.refused)
+        if info.clipped and not self.slam.cfg.map_grow and not self.warned_clip:
+            self.warned_clip = True
+            rospy.logwarn("the robot is near the map's edge and map_grow is false: beams past the "
+                          "edge are clipped from now on (warned once)")
+        self.counts.updates += 1
+        self.maps.entropy = info.entropy
+        self.maps.stamp = stamp
+        return self.slam.poses.copy(), self.slam.mean_pose(), self.slam.covariance()
 
     def _wait_for_odom(self, stamp: float) -> None:
         """Gives odometry published with the scan a moment to arrive, so the scan is

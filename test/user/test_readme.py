@@ -98,6 +98,15 @@ def within_quoted(metrics: dict[str, Any], figures: dict[str, tuple[float, float
     assert metrics["spurious_fraction"] <= figures["spurious"][1] + slack, (metrics, figures)
 
 
+def demo_within_quoted(machine: Any, readme: SimpleNamespace, line: str, preset: str, slack: float) -> None:
+    """Runs a scripts/demo.sh line in the clone; its metrics lie in the README's row of preset."""
+    res = machine.run(line, cwd=machine.clone, ros=False, timeout=900)
+    assert res.returncode == 0, res.stdout[-3000:]
+    readme.clean(res.stdout, line)
+    metrics = json.loads((machine.clone / "out" / "demo" / "metrics.json").read_text())
+    within_quoted(metrics, quoted(readme, preset), slack)
+
+
 def test_make_demo(machine: Any, readme: SimpleNamespace) -> None:
     run_line(readme, "make demo")
     assert machine.demo_status == 0, machine.demo_output[-3000:]
@@ -111,12 +120,8 @@ def test_make_demo(machine: Any, readme: SimpleNamespace) -> None:
 
 
 def test_demo_of_the_assignments_filter(machine: Any, readme: SimpleNamespace) -> None:
-    res = machine.run(run_line(readme, "scripts/demo.sh config:=slam"), cwd=machine.clone, ros=False, timeout=900)
-    assert res.returncode == 0, res.stdout[-3000:]
-    readme.clean(res.stdout, "scripts/demo.sh config:=slam")
-    metrics = json.loads((machine.clone / "out" / "demo" / "metrics.json").read_text())
     # the assignment's flat weight lets the particles wander by decimetres: wide ranges
-    within_quoted(metrics, quoted(readme, "slam"), 0.10)
+    demo_within_quoted(machine, readme, run_line(readme, "scripts/demo.sh config:=slam"), "slam", 0.10)
 
 
 def test_the_preset_tables_command_for_the_real_preset(machine: Any, readme: SimpleNamespace) -> None:
@@ -126,11 +131,7 @@ def test_the_preset_tables_command_for_the_real_preset(machine: Any, readme: Sim
     the run failed with "no trajectory published")."""
     (command,) = re.findall(r"`(scripts/demo\.sh config:=NAME seed:=S)`", readme.path.read_text())
     line = command.replace("config:=NAME", "config:=real").replace("seed:=S", "seed:=0")
-    res = machine.run(line, cwd=machine.clone, ros=False, timeout=900)
-    assert res.returncode == 0, res.stdout[-3000:]
-    readme.clean(res.stdout, "scripts/demo.sh config:=real")
-    metrics = json.loads((machine.clone / "out" / "demo" / "metrics.json").read_text())
-    within_quoted(metrics, quoted(readme, "real"), 0.02)
+    demo_within_quoted(machine, readme, line, "real", 0.02)
 
 
 def test_the_assignments_way(user: Any, readme: SimpleNamespace) -> None:

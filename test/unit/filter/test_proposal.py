@@ -3,12 +3,14 @@ and the free-space checks of the matcher and the weights."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import pytest
 
 from fastslam.config import ConfigError, SlamConfig
+from fastslam.filter.motion import odometry_std
 from fastslam.filter.proposal import gate_match, match_request, normaliser_log_terms, within_motion
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
@@ -53,6 +55,18 @@ def test_match_request_spans_the_motion_model_round_the_prediction():
     fixed = cfg.replace(match_window=0)
     start, params, _ = match_request(fixed, MatchParams.from_config(fixed), samples, predicted, np.zeros(3))
     assert start is samples and params.xy_range == 1.0                      # fixed, round the samples
+
+
+def test_the_real_preset_searches_three_std_devs_of_a_3_m_step():
+    # real.yaml's odometry model on a 3 m straight step (thinned logs, orebro: 2-3.3 m):
+    # rot1, rot2 std str * 3 m = 0.3 rad each; across 3 m * 0.3 = 0.9 m, heading hypot = 0.424 rad
+    cfg = SlamConfig.from_yaml(Path(__file__).resolve().parents[3] / "config" / "real.yaml")
+    std = odometry_std(np.zeros(3), np.array([3.0, 0.0, 0.0]), (cfg.srr, cfg.srt, cfg.str, cfg.stt))
+    np.testing.assert_allclose(std, [0.3, 0.9, math.hypot(0.3, 0.3)])
+    one = np.zeros((1, 3))
+    _, params, _ = match_request(cfg, MatchParams.from_config(cfg), one, one, std)
+    assert math.isclose(params.xy_range, 2.7)                        # 3 x 0.9 m, not capped
+    assert math.isclose(params.theta_range, 3 * math.hypot(0.3, 0.3))  # 1.27 rad (73 degrees)
 
 
 def test_gate_withdraws_trust_from_far_poor_matches_only():

@@ -21,6 +21,7 @@ summary line against the targets of issue 16.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import resource
@@ -68,9 +69,17 @@ def _env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
 
 
+def converter_digest() -> str:
+    """Names the converter's code, so a bag cached by an older converter is made again."""
+    h = hashlib.sha256()
+    for part in ("carmen_to_bag.py", "sim/odometry_noise.py", "io/carmen_log.py", "io/bag_writer.py"):
+        h.update((ROOT / "src" / "fastslam" / part).read_bytes())
+    return h.hexdigest()[:10]
+
+
 def converted(log: str, seed: int, level: float = 1.0) -> Path:
     """The corrected log as a bag with odometry noise (level, seed), converted once."""
-    bag = CACHE / f"{log}-noise{level:g}-seed{seed}.bag"
+    bag = CACHE / f"{log}-noise{level:g}-seed{seed}-{converter_digest()}.bag"
     gt = bag.with_name(bag.name + ".gt.txt")
     if not (bag.exists() and gt.exists()):
         CACHE.mkdir(parents=True, exist_ok=True)

@@ -68,9 +68,25 @@ def increasing_times(times: NDArray[np.float64], min_dt: float = MIN_DT) -> NDAr
     return np.maximum.accumulate(t - k) + k
 
 
+UNTIMED_DT = 1.0  # [s] between the scans of a log without timestamps (orebro's are all 0)
+
+
+def untimed(log: CarmenLog) -> bool:
+    """Whether every scan of the log carries the same time (no timing at all)."""
+    return len(log.scans) > 1 and len({s.t for s in log.scans}) == 1
+
+
 def log_trajectory(log: CarmenLog) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """((T,) strictly increasing scan times [s], (T, 3) robot poses) of the log's laser scans."""
-    times = increasing_times(np.array([s.t for s in log.scans], dtype=np.float64))
+    """((T,) strictly increasing scan times [s], (T, 3) robot poses) of the log's laser scans.
+
+    A log without timestamps gets one scan every UNTIMED_DT from UNTIMED_DT on: 1 ms apart
+    its 1-3 m steps looked like 1000 m/s to the odometry's speed rule, and a scan stamped 0
+    is one ROS calls unstamped (the first was dropped).
+    """
+    if untimed(log):
+        times = UNTIMED_DT * np.arange(1, len(log.scans) + 1, dtype=np.float64)
+    else:
+        times = increasing_times(np.array([s.t for s in log.scans], dtype=np.float64))
     poses = np.array([s.robot_pose for s in log.scans], dtype=np.float64).reshape(-1, 3)
     return times, poses
 
@@ -143,6 +159,9 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as err:  # the bag library's own errors: one line, never a traceback
         print(f"error: writing {args.out} failed: {type(err).__name__}: {err}", file=sys.stderr)
         return 1
+    if untimed(log):
+        print(f"warning: the log's scans carry no timestamps (all {log.scans[0].t:g} s): stamped "
+              f"{UNTIMED_DT:g} s apart in file order", file=sys.stderr)
     if log.skipped:
         print(f"warning: {len(log.skipped)} ODOM line(s) left out (not needed: the odometry is re-integrated "
               f"from the scans' poses); first: {log.skipped[0]}", file=sys.stderr)

@@ -40,6 +40,18 @@ def test_log_trajectory_is_the_robot_poses_at_increasing_times(tmp_path):
     np.testing.assert_array_equal(poses, [[1.0, 2.0, 0.5], [1.5, 2.5, 0.7]])
 
 
+def test_a_log_without_timestamps_gets_a_scan_a_second_and_a_warning(tmp_path, capsys):
+    # orebro's FLASER lines all end "0 pippo 0": no scan may be stamped 0 (ROS: unstamped)
+    untimed = "".join(f"FLASER 3 1.0 2.0 3.0 {x} 0.0 0.0 {x} 0.0 0.0 0 pippo 0\n" for x in (0.0, 1.0, 3.0))
+    (tmp_path / "u.log").write_text(untimed)
+    times, _ = log_trajectory(read_log(tmp_path / "u.log"))
+    np.testing.assert_array_equal(times, [1.0, 2.0, 3.0])
+    assert carmen_to_bag.main([str(tmp_path / "u.log"), "--out", str(tmp_path / "u.bag"), "--quiet"]) == 0
+    captured = capsys.readouterr()
+    assert "no timestamps (all 0 s): stamped 1 s apart" in captured.err
+    assert "3 scans over 2.0 s" in captured.out
+
+
 def test_a_log_without_scans_writes_nothing(tmp_path):
     (tmp_path / "odom.log").write_text("ODOM 1.0 2.0 0.5 0.3 0.1 0.0 300.0 host 300.5\n")
     with pytest.raises(ValueError, match="no FLASER or ROBOTLASER1 scans"):

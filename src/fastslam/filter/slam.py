@@ -202,7 +202,8 @@ class FastSlam:
         self._match_odom = odom
         one = predicted[None, :]
         start, params, prior = match_request(cfg, self._track_params, one, one, std)
-        assert prior is not None
+        if prior is None:   # match_prior: window: half the search window round the prediction
+            prior = (one, np.array([params.xy_range, params.xy_range, params.theta_range]) / 2)
         grid, beams = self.grid.view(self.best), select_beams(scan, cfg)
         found = (refine_poses(grid, start, beams, params, prior) if cfg.track_search == "refine"
                  else match_poses(grid, start, beams, params, prior=prior))

@@ -241,6 +241,20 @@ def test_tracking_matches_the_scans_between_updates(room_scan, search):
     assert relative(plain.poses[plain.best], plain.live_pose)[0] == pytest.approx(0.14)
 
 
+@pytest.mark.parametrize("search", ["search", "refine"])
+def test_tracking_with_the_window_prior_matches_too(room_scan, search):
+    # match_prior: window (the defaults' and burger's): a prior of half the search window round
+    # the prediction; tracking once stopped here with an AssertionError (no motion prior)
+    slam = _tracking(track_search=search, match_prior="window", match_window=0.0, match_gate=0.0,
+                     match_xy_range=0.1, match_theta_range=0.05)
+    _map_two_scans(slam, room_scan)
+    start = slam.live_pose.copy()
+    info = slam.step(np.array([0.14, 0.0, 0.0]), room_scan(np.array([0.1, 0.0, 0.0]), ANGLES, 0.4))
+    assert not info.processed
+    moved = relative(start, slam.live_pose)
+    assert abs(moved[0] - 0.1) < 0.01 and abs(moved[1]) < 0.01 and abs(moved[2]) < 0.005
+
+
 def test_tracking_keeps_the_motion_prediction_when_the_match_is_gated_or_blind(room_scan):
     # gate 0.5 std-devs: the match 4 cm (0.8 std-devs) from the prediction is not trusted
     slam = _tracking(match_gate=0.5)

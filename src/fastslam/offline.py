@@ -33,6 +33,7 @@ import json
 import resource
 import sys
 import time
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -323,6 +324,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted: nothing written", file=sys.stderr)
         return 130
+    except Exception as err:  # a fault of ours: one line to report, never a traceback or half a folder
+        where = traceback.extract_tb(err.__traceback__)[-1]
+        print(f"error: the run stopped on an internal error, nothing written: {type(err).__name__}"
+              f"{': ' + str(err) if str(err) else ''} ({Path(where.filename).name}:{where.lineno}; "
+              "please report it with the command)", file=sys.stderr)
+        return 1
     for event in result.events:
         print(f"warning: {event}", file=sys.stderr)
     for key, n in result.dropped.items():   # one line per kind of drop

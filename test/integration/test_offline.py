@@ -53,6 +53,25 @@ def test_cli_writes_map_trajectory_and_stats(tmp_path, capsys, repo_root):
     assert "particles: 4" in (out / "config.yaml").read_text()
 
 
+def test_an_internal_error_is_one_line_exit_1_and_nothing_written(tmp_path, capsys, monkeypatch, repo_root):
+    cfg = SlamConfig.from_yaml(repo_root / "config" / "slam.yaml", {"seed": 0, "particles": 2})
+    direct = simrun.run("room", cfg, seed=0, record=True, max_time=3.0)
+    bag = tmp_path / "short.bag"
+    write_bag(bag, direct.scans, direct.odoms,
+              static_transforms=[StaticTransform.planar("base_footprint", "base_scan", x=-0.032)])
+
+    def broken(*_args, **_kw):
+        raise AssertionError
+
+    monkeypatch.setattr(offline, "run_bag", broken)
+    out = tmp_path / "out"
+    assert offline.main([str(bag), "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith("error: the run stopped on an internal error, nothing written: AssertionError (")
+    assert not out.exists() and list(tmp_path.iterdir()) == [bag]
+
+
 def test_saved_maps_are_the_same_with_dense_and_tiled_storage(tmp_path, monkeypatch, repo_root):
     # The tool's map files (map_server PGM + YAML, map.png) from the filter on shared
     # tiles equal, byte for byte, those of the dense grids the filter used to keep.

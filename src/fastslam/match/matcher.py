@@ -71,6 +71,11 @@ class MatchParams:
                    max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
                    icp_from_prior=cfg.match_icp_from_prior)
 
+    @property
+    def window_spread(self) -> NDArray[np.float64]:
+        """(3,) std-devs of the prior a window search implies: half its half-widths."""
+        return np.array([self.xy_range, self.xy_range, self.theta_range]) / 2
+
 
 @dataclass(frozen=True)
 class Match:
@@ -117,7 +122,7 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
         return nothing
     if prior is None:
         centre = poses
-        spread = np.array([params.xy_range, params.xy_range, params.theta_range]) / 2
+        spread = params.window_spread
     else:
         centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
     icp_points = None   # (end points, surface normals) for ICP: its own, more, returns if asked

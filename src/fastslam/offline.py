@@ -326,9 +326,9 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except Exception as err:  # a fault of ours: one line to report, never a traceback or half a folder
         where = traceback.extract_tb(err.__traceback__)[-1]
-        print(f"error: the run stopped on an internal error, nothing written: {type(err).__name__}"
-              f"{': ' + str(err) if str(err) else ''} ({Path(where.filename).name}:{where.lineno}; "
-              "please report it with the command)", file=sys.stderr)
+        what = ": ".join(part for part in (type(err).__name__, str(err)) if part)
+        print(f"error: the run stopped on an internal error, nothing written: {what} "
+              f"({Path(where.filename).name}:{where.lineno}; please report it with the command)", file=sys.stderr)
         return 1
     for event in result.events:
         print(f"warning: {event}", file=sys.stderr)

@@ -202,8 +202,6 @@ class FastSlam:
         self._match_odom = odom
         one = predicted[None, :]
         start, params, prior = match_request(cfg, self._track_params, one, one, std)
-        if prior is None:   # match_prior: window: half the search window round the prediction
-            prior = (one, params.window_spread)
         grid, beams = self.grid.view(self.best), select_beams(scan, cfg)
         found = (refine_poses(grid, start, beams, params, prior) if cfg.track_search == "refine"
                  else match_poses(grid, start, beams, params, prior=prior))

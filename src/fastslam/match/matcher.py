@@ -71,11 +71,6 @@ class MatchParams:
                    max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
                    icp_from_prior=cfg.match_icp_from_prior)
 
-    @property
-    def window_spread(self) -> NDArray[np.float64]:
-        """(3,) std-devs of the prior a window search implies: half its half-widths."""
-        return np.array([self.xy_range, self.xy_range, self.theta_range]) / 2
-
 
 @dataclass(frozen=True)
 class Match:
@@ -120,11 +115,7 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     x0, y0, x1, y1 = search_area(grid, poses, local, ka * dth, k0 * coarse, window(grid, poses, reach))
     if x1 - x0 < 4 * POOL or y1 - y0 < 4 * POOL:
         return nothing
-    if prior is None:
-        centre = poses
-        spread = params.window_spread
-    else:
-        centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
+    centre, spread = _prior(poses, params, prior)
     icp_points = None   # (end points, surface normals) for ICP: its own, more, returns if asked
     if params.refine == "icp":
         fine = sel if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
@@ -219,8 +210,18 @@ def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tup
     return half, quarter
 
 
+def _prior(poses: NDArray[np.float64], params: MatchParams,
+           prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(centre (N, 3), std-devs (3,)) of a match's odometry prior: the one given, its
+    std-devs at least PRIOR_FLOOR; None: round poses, half the search window."""
+    if prior is None:
+        return poses, np.array([params.xy_range, params.xy_range, params.theta_range]) / 2
+    return prior[0], np.maximum(prior[1], PRIOR_FLOOR)
+
+
 def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
-                 prior: tuple[NDArray[np.float64], NDArray[np.float64]]) -> Match:
+                 prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> Match:
     """A short search, then the last stage of match_poses (ICP), from poses (N, 3) within
     a few cells of the match: tracking a pose from scan to scan between updates, where
     the odometry of one scan errs by centimetres but its heading by a degree or two
@@ -231,7 +232,7 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     cell of an occupied one (the smallest turn among equals). Trusted as match_poses
     trusts: min_score of the end points within one cell of an occupied one, and
     (free_space) at most max_free of them on known free cells with none occupied near.
-    prior: (centre (N, 3), std-devs (3,)) as for match_poses.
+    prior: (centre (N, 3), std-devs (3,)) or None, as for match_poses.
     """
     n = len(poses)
     if np.count_nonzero(beams.hit) < MIN_BEAMS:
@@ -249,7 +250,7 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     start = cand[np.arange(n), best]
     sel = few if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
     local = coarse if sel is few else end_points(beams, sel)
-    centre, spread = prior[0], np.maximum(prior[1], PRIOR_FLOOR)
+    centre, spread = _prior(poses, params, prior)
     pose, info = _icp(grid, start, local, surface_normals(beams, sel), centre, spread, params.icp_from_prior)
     occupied, free = neighbourhood_flags(grid, pose, local)
     score = occupied.mean(axis=1)

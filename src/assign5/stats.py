@@ -83,7 +83,8 @@ class Stats:
             rules = dict(self.front.counts)
         return {"scans": self.counts.scans, "updates": self.counts.updates, "resets": self.front.resets,
                 "dropped": dropped, "rules": rules,
-                "map_growth_refused": self.slam.refusals, "known_cells": self.maps.known_cells,
+                "map_growth_refused": self.slam.refusals, "match_recoveries": self.slam.recoveries,
+                "known_cells": self.maps.known_cells,
                 "map_cells": list(grid.shape), "maps_mb": round(grid.nbytes / 2**20, 1),
                 "maps_limit_mb": None if lim.map_bytes is None else round(lim.map_bytes / 2**20, 1),
                 "rss_mb": round(rss / 2**20, 1)}

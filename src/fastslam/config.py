@@ -125,6 +125,9 @@ class SlamConfig:
                                "the motion model for the step, around its noise-free prediction, at most "
                                "match_xy_range / match_theta_range; 0 = those fixed half-widths around each "
                                "particle's motion sample")
+    match_recover: float = _num(0.0, 0.0, 100.0, "match_prior: motion: when no particle's match is trusted, "
+                                "search again with this many times the motion model's std-devs (window, prior "
+                                "and gate) and trust only matches with match_good_score; 0 = off")
     match_gate: float = _num(0.0, 0.0, 100.0, "distrust a match farther from the noise-free motion prediction than "
                              "this many std-devs of the motion model (match_prior: motion); 0 = off")
     track_scans: bool = field(default=False, metadata={
@@ -146,7 +149,7 @@ class SlamConfig:
             raise ConfigError(f"fov_min={self.fov_min} must be less than fov_max={self.fov_max}")
         if self.l_min >= self.l_max:
             raise ConfigError(f"l_min={self.l_min} must be less than l_max={self.l_max}")
-        for name in ("match_gate", "match_window"):
+        for name in ("match_gate", "match_window", "match_recover"):
             if getattr(self, name) > 0 and self.match_prior != "motion":
                 raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
         if self.track_scans and self.proposal != "scan_match":

@@ -118,7 +118,8 @@ class OfflineResult:
                 "ms_per_update_median": float(np.median(ms)), "ms_per_update_p95": float(np.percentile(ms, 95)),
                 "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                 "dropped": self.dropped, "odometry_rules": self.rules, "events": self.events,
-                "map_growth_refused": self.slam.refusals, "resets": len(self.reset_maps),
+                "map_growth_refused": self.slam.refusals, "match_recoveries": self.slam.recoveries,
+                "resets": len(self.reset_maps),
                 **({"accuracy": self.accuracy} if self.accuracy is not None else {})}
 
 

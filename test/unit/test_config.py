@@ -101,6 +101,13 @@ def test_match_spread_needs_icp():
         SlamConfig(match_spread="match", match_refine="hill")
 
 
+@pytest.mark.parametrize("name", ["match_gate", "match_window", "match_recover"])
+def test_keys_in_motion_std_devs_need_the_motion_prior(name):
+    with pytest.raises(ConfigError, match=f"{name} needs match_prior=motion"):
+        SlamConfig(**{name: 3.0}, match_prior="window")
+    assert getattr(SlamConfig(**{name: 3.0}, match_prior="motion"), name) == 3.0
+
+
 def test_log_odds_steps_and_clamps_keep_their_signs():
     with pytest.raises(ConfigError, match=r"l_min=1.0 must be in \[-100.0, -1e-06\]"):
         SlamConfig(l_min=1.0)

@@ -67,6 +67,7 @@ class FastSlam:
         self.rng = rng if rng is not None else np.random.default_rng(cfg.rng_seed)
         self.limits = limits if limits is not None else Limits()
         self.refusals = 0  # growths refused (max_map_extent, memory), over every life
+        self.recoveries = 0  # updates where the wider search (match_recover) found a trusted match
         self.reset()
 
     def reset(self) -> None:
@@ -247,10 +248,26 @@ class FastSlam:
                                              self._motion_std)
         match = match_poses(self.grid, start, beams, params, prior=prior)
         match = gate_match(self.cfg, match, self._predicted, self._motion_std)
+        if not match.trusted.any() and self.cfg.match_recover > 0:
+            match = self._recover(beams)
         if match.trusted.any():
             self._sample_around(match)
             self._match = match
         return int(match.trusted.sum())
+
+    def _recover(self, beams: Beams) -> Match:
+        """No match trusted (drift has made the maps disagree with the scan, as on
+        returning to a place seen long ago): one wider search, match_recover times the
+        motion model, trusting only the matches that explain the scan well."""
+        cfg = self.cfg
+        wide = self._motion_std * cfg.match_recover
+        start, params, prior = match_request(cfg, self._match_params, self.poses, self._predicted, wide)
+        match = match_poses(self.grid, start, beams, params, prior=prior)
+        match = gate_match(cfg, match, self._predicted, wide)
+        assert match.score is not None or not match.trusted.any()
+        good = match.trusted if match.score is None else match.trusted & (match.score >= cfg.match_good_score)
+        self.recoveries += int(good.any())
+        return replace(match, trusted=good)
 
     def _sample_around(self, match: Match) -> None:
         """Trusted particles take a sample around their match: with the match's covariance,

@@ -203,3 +203,34 @@ def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_s
         weights.append(s.log_w.copy())
     assert weights[0][1] < weights[0][0] - 0.5
     assert weights[1][0] == pytest.approx(weights[1][1], abs=1e-9)
+
+
+def _slipped(room_scan: Callable[..., Scan], recover: float, good: float = 0.6) -> FastSlam:
+    """Two particles map the pillar room along x with exact odometry; then the wheels
+    slip: odometry moves 0.05 m, the robot 0.4 m, far outside the step's window (3 std-devs
+    of at least 0.02 m: 0.06 m), so no match there is trusted."""
+    cfg = SlamConfig(**REAL, particles=2, seed=0, toggle_noise=0, max_range=3.5, weight_model="likelihood",
+                     match_window=3, match_gate=3.5, match_good_score=good, match_min_score=0.3,
+                     match_min_known=20, match_max_free=0.2, match_floor_xy=0.02, match_floor_theta=0.01,
+                     match_xy_range=1.0, match_theta_range=0.5, match_recover=recover)
+    slam = FastSlam(cfg)
+    for i in range(7):
+        pose = np.array([-0.3 + 0.05 * i, 0.0, 0.0])
+        slam.step(pose, room_scan(pose, ANGLES, stamp=float(i)))
+    slam.step(np.array([0.05, 0.0, 0.0]), room_scan(np.array([0.4, 0.0, 0.0]), ANGLES, stamp=7.0))
+    return slam
+
+
+def test_a_slip_beyond_the_window_is_found_by_the_wider_search_only(room_scan):
+    kept = _slipped(room_scan, recover=0)
+    np.testing.assert_allclose(kept.poses[:, 0], 0.05, atol=0.02)        # no match trusted: the odometry's
+    assert kept.recoveries == 0
+    found = _slipped(room_scan, recover=8)            # 8 x 3 x 0.02 m = 0.48 m of window
+    np.testing.assert_allclose(found.poses[:, :2], [[0.4, 0.0]] * 2, atol=0.03)
+    assert found.recoveries == 1
+
+
+def test_the_wider_search_trusts_only_a_good_match(room_scan):
+    strict = _slipped(room_scan, recover=8, good=1.0)      # no match explains every end point
+    np.testing.assert_allclose(strict.poses[:, 0], 0.05, atol=0.02)
+    assert strict.recoveries == 0

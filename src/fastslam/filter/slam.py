@@ -244,10 +244,7 @@ class FastSlam:
 
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
-        start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted,
-                                             self._motion_std)
-        match = match_poses(self.grid, start, beams, params, prior=prior)
-        match = gate_match(self.cfg, match, self._predicted, self._motion_std)
+        match = self._match_gated(beams, self._motion_std)
         if not match.trusted.any() and self.cfg.match_recover > 0:
             match = self._recover(beams)
         if match.trusted.any():
@@ -259,15 +256,17 @@ class FastSlam:
         """No match trusted (drift has made the maps disagree with the scan, as on
         returning to a place seen long ago): one wider search, match_recover times the
         motion model, trusting only the matches that explain the scan well."""
-        cfg = self.cfg
-        wide = self._motion_std * cfg.match_recover
-        start, params, prior = match_request(cfg, self._match_params, self.poses, self._predicted, wide)
-        match = match_poses(self.grid, start, beams, params, prior=prior)
-        match = gate_match(cfg, match, self._predicted, wide)
-        assert match.score is not None or not match.trusted.any()
-        good = match.trusted if match.score is None else match.trusted & (match.score >= cfg.match_good_score)
+        match = self._match_gated(beams, self._motion_std * self.cfg.match_recover)
+        good = match.trusted if match.score is None else match.trusted & (match.score >= self.cfg.match_good_score)
         self.recoveries += int(good.any())
         return replace(match, trusted=good)
+
+    def _match_gated(self, beams: Beams, motion_std: NDArray[np.float64]) -> Match:
+        """Every particle's match in the window and prior of motion_std round its
+        prediction, held to the gate of the same std-devs."""
+        start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted, motion_std)
+        match = match_poses(self.grid, start, beams, params, prior=prior)
+        return gate_match(self.cfg, match, self._predicted, motion_std)
 
     def _sample_around(self, match: Match) -> None:
         """Trusted particles take a sample around their match: with the match's covariance,

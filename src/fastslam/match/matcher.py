@@ -68,7 +68,7 @@ class MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
-                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
+                   max_free=max(cfg.match_max_free, cfg.match_max_free_near), icp_beams=cfg.match_icp_beams,
                    icp_from_prior=cfg.match_icp_from_prior)
 
 
@@ -82,6 +82,8 @@ class Match:
     score: (N,) share of the matched end points on occupied 2x2 blocks (None: no match).
     scan_information: (N, 3, 3) what the ICP's end points alone know of each pose (its
     Hessian less the prior), over icp_points end points (ICP only, else None).
+    free: (N,) share of the matched end points on known free cells with nothing occupied
+    near (free_space only, else None).
     """
 
     poses: NDArray[np.float64]
@@ -90,6 +92,7 @@ class Match:
     score: NDArray[np.float64] | None = None  # (N,) share of the end points on occupied cells
     scan_information: NDArray[np.float64] | None = None
     icp_points: int = 0
+    free: NDArray[np.float64] | None = None
 
 
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
@@ -127,10 +130,9 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
                          icp_points, (x0, y0, x1, y1), k0, ka, dth, params)
              for a in range(0, n, size)]
     pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
-    cov = None if found[0][2] is None else np.concatenate([f[2] for f in found])
-    info = None if found[0][4] is None else np.concatenate([f[4] for f in found])
+    cov, info, free = (None if found[0][i] is None else np.concatenate([f[i] for f in found]) for i in (2, 4, 5))
     return Match(poses=pose, trusted=trusted, covariance=cov, score=score, scan_information=info,
-                 icp_points=0 if icp_points is None else len(icp_points[0]))
+                 icp_points=0 if icp_points is None else len(icp_points[0]), free=free)
 
 
 # numpy >= 1.22 interpolates a quantile as far_range does (numpy.lib.function_base._lerp);
@@ -157,9 +159,9 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
                 box: tuple[int, int, int, int],
                 k0: int, ka: int, dth: float, params: MatchParams
                 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.float64],
-                           NDArray[np.float64] | None]:
+                           NDArray[np.float64] | None, NDArray[np.float64] | None]:
     """match_poses for the particles of grid (a view): (poses, trusted, covariance, score,
-    scan information: the ICP's Hessian less the prior, or None)."""
+    scan information: the ICP's Hessian less the prior, or None, share on free cells or None)."""
     res = grid.resolution
     coarse = POOL * res
     x0, y0, _, _ = box
@@ -190,9 +192,11 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     flags = _flags_at(pose, local, half, w_origin, res)
     score = (flags > 0).mean(axis=1)
     trusted = (score >= params.min_score) & (known >= params.min_known)
+    free = None
     if params.free_space:
-        trusted &= (flags < 0).mean(axis=1) <= params.max_free
-    return pose, trusted, cov, score, scan_info
+        free = (flags < 0).mean(axis=1)
+        trusted &= free <= params.max_free
+    return pose, trusted, cov, score, scan_info, free
 
 
 def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
@@ -255,10 +259,11 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     occupied, free = neighbourhood_flags(grid, pose, local)
     score = occupied.mean(axis=1)
     trusted = score >= params.min_score
-    if params.free_space:
-        trusted &= free.mean(axis=1) <= params.max_free
+    share = free.mean(axis=1) if params.free_space else None
+    if share is not None:
+        trusted &= share <= params.max_free
     return Match(poses=pose, trusted=trusted, covariance=inv3(info) if params.covariance else None, score=score,
-                 scan_information=info - prior_information(centre, spread), icp_points=len(sel))
+                 scan_information=info - prior_information(centre, spread), icp_points=len(sel), free=share)
 
 
 def _icp(grid: GridMaps, start: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],

@@ -70,7 +70,8 @@ class SlamNode:
         self.tf_out = tf2_ros.TransformBroadcaster()
         self.mounts = LaserMounts(self.tf_buffer, cfg.base_frame, cfg.tf_timeout)
         self.pub_particles = rospy.Publisher("particles", PoseArray, queue_size=1)
-        self.pub_pose = rospy.Publisher("~pose", PoseWithCovarianceStamped, queue_size=1)
+        # one pose per update, each delivered: with a queue of 1 two quick updates lost the first
+        self.pub_pose = rospy.Publisher("~pose", PoseWithCovarianceStamped, queue_size=10)
         self.pub_neff = rospy.Publisher("~neff", Float64, queue_size=1)
         self.pub_time = rospy.Publisher("~update_time", Float64, queue_size=1)
         # the services after every publisher: a client that waited for one may stop the node at

@@ -119,6 +119,9 @@ class SlamConfig:
     match_max_free_near: float = _num(0.0, 0.0, 1.0, "a match within match_gate times match_floor_xy / "
                                       "match_floor_theta of the motion prediction may have up to this share of "
                                       "its end points in known free space (people, doors); 0 = match_max_free")
+    match_short_free: float = _num(0.0, 0.0, 100.0, "end points in known free space in a run of neighbouring "
+                                   "returns spanning less than this (a person, a door) do not count against a "
+                                   "match (match_max_free) [m]; 0 = all count")
     match_floor_xy: float = _num(0.025, 0.0, 10.0, "match_prior: motion: least std-dev along and across of the "
                                  "matcher's odometry prior, window and gate (odometry jitter) [m]")
     match_floor_theta: float = _num(0.01, 0.0, math.pi, "... and of the heading [rad]")
@@ -155,6 +158,9 @@ class SlamConfig:
         for name in ("match_gate", "match_window", "match_recover"):
             if getattr(self, name) > 0 and self.match_prior != "motion":
                 raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
+        if self.match_short_free > 0 and self.match_max_free >= 1.0:
+            raise ConfigError(f"match_short_free={self.match_short_free} needs match_max_free < 1 (the free-space "
+                              f"check it relaxes)")
         if self.match_max_free_near > 0 and (self.match_gate <= 0 or self.match_max_free_near < self.match_max_free):
             raise ConfigError(f"match_max_free_near={self.match_max_free_near} needs match_gate > 0 (it is for "
                               f"matches within the gate) and at least match_max_free={self.match_max_free}")

@@ -121,6 +121,35 @@ def test_free_space_distrusts_a_match_that_puts_end_points_in_the_room(room_scan
     assert right.trusted.all() and right.free is not None and right.free.max() <= 0.05
 
 
+def test_a_person_in_front_of_the_robot_spares_the_right_match_not_a_shifted_one(room_scan):
+    slam = _mapped(room_scan)
+    truth = np.array([0.0, 0.0, 0.0])
+    scan = room_scan(truth, ANGLES)
+    ahead = np.abs(np.angle(np.exp(1j * ANGLES))) <= np.radians(45)
+    crowded = Scan(ranges=np.where(ahead, 0.35, scan.ranges), angles=ANGLES, range_min=0.12, range_max=3.5,
+                   stamp=scan.stamp)            # someone 0.35 m ahead: 0.49 m wide, a quarter of the beams
+    params = MatchParams(beams=90, xy_range=0.05, theta_range=0.02, min_score=0.3, min_known=20, free_space=True,
+                         max_free=0.2)
+    spared = MatchParams(**{**params.__dict__, "short_free": 1.0})
+    at_truth = np.array([truth, truth])
+    plain = match_poses(slam.grid, at_truth, select_beams(crowded, slam.cfg), params)
+    assert plain.free is not None and plain.free.min() > 0.25 and not plain.trusted.any()
+    assert plain.score is not None and plain.score.min() > 0.7       # the walls it sees match
+    right = match_poses(slam.grid, at_truth, select_beams(crowded, slam.cfg), spared)
+    assert right.trusted.all() and right.free is not None and right.free.max() == 0.0
+    shorter = MatchParams(**{**spared.__dict__, "short_free": 0.2})   # its free runs span 0.2-0.3 m: counted
+    assert not match_poses(slam.grid, at_truth, select_beams(crowded, slam.cfg), shorter).trusted.any()
+    # shifted 0.6 m: a whole wall's end points in the room, one long run
+    wrong = match_poses(slam.grid, np.array([truth + [0.6, 0.0, 0.0]] * 2), select_beams(scan, slam.cfg), spared)
+    assert wrong.free is not None and wrong.free.min() > 0.2 and not wrong.trusted.any()
+
+
+def test_short_free_runs_need_the_free_space_check():
+    with pytest.raises(ConfigError, match="match_short_free=1.0 needs match_max_free < 1"):
+        SlamConfig(**REAL, match_short_free=1.0)
+    assert MatchParams.from_config(SlamConfig(**REAL, match_max_free=0.2, match_short_free=1.0)).short_free == 1.0
+
+
 def test_likelihood_free_costs_end_points_in_known_free_space(room_scan):
     slam = _mapped(room_scan)
     iy, ix = np.nonzero(slam.grid.particle_map(1) < 0)

@@ -10,9 +10,23 @@ from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
 from fastslam.match import MatchParams, match_poses, refine_poses
-from fastslam.match.matcher import far_range, neighbourhood_flags
+from fastslam.match.matcher import far_range, free_share, in_long_runs, neighbourhood_flags
 
 ANGLES = np.radians(np.arange(360.0))
+
+
+def test_free_end_points_count_in_runs_spanning_the_length_or_more():
+    local = np.stack([np.arange(8) * 0.3, np.zeros(8)], axis=1)     # returns 0.3 m apart along a wall
+    free = np.array([[1, 1, 0, 1, 1, 1, 1, 0],     # runs 0-1 (0.3 m) and 3-6 (0.9 m)
+                     [0, 0, 0, 0, 0, 0, 0, 1],     # one return: 0 m
+                     [1, 1, 1, 1, 1, 1, 1, 1]], dtype=bool)   # 2.1 m
+    np.testing.assert_array_equal(in_long_runs(free, local, 0.8),
+                                  [[0, 0, 0, 1, 1, 1, 1, 0], [0] * 8, [1] * 8])
+    np.testing.assert_array_equal(in_long_runs(free, local, 0.95)[0], [0] * 8)
+    # the share: the runs under 0.8 m left out
+    np.testing.assert_allclose(free_share(free, local, MatchParams(free_space=True, short_free=0.8)),
+                               [4 / 8, 0 / 8, 8 / 8])
+    np.testing.assert_allclose(free_share(free, local, MatchParams(free_space=True)), [6 / 8, 1 / 8, 8 / 8])
 
 
 def test_matcher_recovers_a_known_offset(mapped_room, scan360):

@@ -295,7 +295,7 @@ def free_share(free: NDArray[np.bool_], local: NDArray[np.float64], params: Matc
     turned or shifted copy of a room puts whole walls there."""
     if params.short_free <= 0:
         return free.mean(axis=1)
-    return (free & in_long_runs(free, local, params.short_free)).mean(axis=1)
+    return in_long_runs(free, local, params.short_free).mean(axis=1)
 
 
 def in_long_runs(flags: NDArray[np.bool_], local: NDArray[np.float64], length: float) -> NDArray[np.bool_]:

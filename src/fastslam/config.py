@@ -116,9 +116,6 @@ class SlamConfig:
                                 "icp: Gauss-Newton on end point to nearest occupied cell, with the prior")
     match_max_free: float = _num(1.0, 0.0, 1.0, "the matcher counts end points in known free space against a "
                                  "candidate and distrusts a match with a larger share of them; 1 = neither")
-    match_max_free_near: float = _num(0.0, 0.0, 1.0, "a match within match_gate times match_floor_xy / "
-                                      "match_floor_theta of the motion prediction may have up to this share of "
-                                      "its end points in known free space (people, doors); 0 = match_max_free")
     match_short_free: float = _num(0.0, 0.0, 100.0, "end points in known free space in a run of neighbouring "
                                    "returns spanning less than this (a person, a door) do not count against a "
                                    "match (match_max_free) [m]; 0 = all count")
@@ -161,9 +158,6 @@ class SlamConfig:
         if self.match_short_free > 0 and self.match_max_free >= 1.0:
             raise ConfigError(f"match_short_free={self.match_short_free} needs match_max_free < 1 (the free-space "
                               f"check it relaxes)")
-        if self.match_max_free_near > 0 and (self.match_gate <= 0 or self.match_max_free_near < self.match_max_free):
-            raise ConfigError(f"match_max_free_near={self.match_max_free_near} needs match_gate > 0 (it is for "
-                              f"matches within the gate) and at least match_max_free={self.match_max_free}")
         if self.track_scans and self.proposal != "scan_match":
             raise ConfigError("track_scans needs proposal=scan_match (it uses the scan matcher)")
         if self.match_weight != "likelihood" and (self.weight_model != "likelihood" or self.proposal != "scan_match"):

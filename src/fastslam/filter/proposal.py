@@ -68,22 +68,12 @@ def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
     prediction than match_gate std-devs withdrawn, unless match_good_score of their end
     points lie on occupied cells: a poor or ambiguous match (a turned copy of a room, the
     wrong corridor) explains the scan by a motion the odometry makes implausible, and
-    the particle keeps its motion sample; a good one may correct a wheel slip.
-
-    With match_max_free_near, the matcher trusted matches with up to that share of end
-    points in known free space; only those that moved the particle less than match_gate
-    times the floors (match_floor_xy, match_floor_theta) keep that trust, however long the
-    step: people and doors make the free-space check fail on right matches, a turned
-    copy of a room on wrong ones, and those lie further off."""
+    the particle keeps its motion sample; a good one may correct a wheel slip."""
     if cfg.match_gate <= 0 or match.score is None:
         return match
     good = match.score >= cfg.match_good_score
     near = within_motion(match.poses, predicted, motion_spread(cfg, motion_std), cfg.match_gate)
-    trusted = match.trusted & (good | near)
-    if match.free is not None and cfg.match_max_free_near > cfg.match_max_free:
-        close = within_motion(match.poses, predicted, motion_spread(cfg, np.zeros(3)), cfg.match_gate)
-        trusted &= close | (match.free <= cfg.match_max_free)
-    return replace(match, trusted=trusted)
+    return replace(match, trusted=match.trusted & (good | near))
 
 
 def normaliser_log_terms(poses: NDArray[np.float64], predicted: NDArray[np.float64], spread: NDArray[np.float64],

@@ -258,8 +258,6 @@ class FastSlam:
         motion model, trusting only the matches that explain the scan well."""
         match = self._match_gated(beams, self._motion_std * self.cfg.match_recover)
         good = match.trusted if match.score is None else match.trusted & (match.score >= self.cfg.match_good_score)
-        if match.free is not None:   # the wider gate's "near" is far: the strict free-space share
-            good &= match.free <= self.cfg.match_max_free
         self.recoveries += int(good.any())
         return replace(match, trusted=good)
 

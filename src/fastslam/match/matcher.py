@@ -69,7 +69,7 @@ class MatchParams:
         return cls(beams=cfg.match_beams, xy_range=cfg.match_xy_range, theta_range=cfg.match_theta_range,
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
-                   max_free=max(cfg.match_max_free, cfg.match_max_free_near), icp_beams=cfg.match_icp_beams,
+                   max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
                    icp_from_prior=cfg.match_icp_from_prior, short_free=cfg.match_short_free)
 
 

@@ -78,31 +78,6 @@ def test_gate_withdraws_trust_from_far_poor_matches_only():
     np.testing.assert_array_equal(gated.trusted, [False, True, True])       # far and poor; far but good; near
 
 
-def test_free_space_share_close_to_the_prediction_may_be_larger():
-    # match_max_free 0.2 for every match; 0.35 for one within 3 floors (0.05 m) of its prediction
-    cfg = SlamConfig(**REAL, match_gate=3.0, match_good_score=0.6, match_max_free=0.2, match_max_free_near=0.35,
-                     match_floor_xy=0.05, match_floor_theta=0.05)
-    predicted = np.zeros((5, 3))
-    along = np.array([0.1, 0.25, 0.25, 0.5, 0.5])   # motion std-devs 1, 2.5, 2.5, 5, 5; floors 2, 5, 5, 10, 10
-    poses = np.stack([along, np.zeros(5), np.zeros(5)], axis=1)
-    match = Match(poses=poses, trusted=np.ones(5, dtype=bool), score=np.array([0.5, 0.5, 0.5, 0.7, 0.7]),
-                  free=np.array([0.3, 0.3, 0.1, 0.3, 0.1]))
-    gated = gate_match(cfg, match, predicted, np.array([0.1, 0.1, 0.1]))
-    # close with 0.3 kept; within the motion gate but not close: 0.3 withdrawn, 0.1 kept;
-    # far but good (score 0.7): 0.3 withdrawn, 0.1 kept
-    np.testing.assert_array_equal(gated.trusted, [True, False, True, False, True])
-    assert MatchParams.from_config(cfg).max_free == 0.35   # the matcher trusts up to the larger share
-    off = gate_match(cfg.replace(match_max_free_near=0.0), match, predicted, np.array([0.1, 0.1, 0.1]))
-    np.testing.assert_array_equal(off.trusted, [True] * 5)   # the matcher's share alone
-
-
-def test_free_space_share_near_needs_the_gate_and_at_least_the_share_of_all():
-    with pytest.raises(ConfigError, match="match_max_free_near=0.3 needs match_gate > 0"):
-        SlamConfig(**REAL, match_max_free=0.2, match_max_free_near=0.3)
-    with pytest.raises(ConfigError, match="at least match_max_free=0.2"):
-        SlamConfig(**REAL, match_gate=3.0, match_max_free=0.2, match_max_free_near=0.1)
-
-
 def test_free_space_distrusts_a_match_that_puts_end_points_in_the_room(room_scan):
     slam = _mapped(room_scan)
     truth = np.array([0.0, 0.0, 0.0])

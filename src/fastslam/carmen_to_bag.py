@@ -162,6 +162,11 @@ def main(argv: list[str] | None = None) -> int:
     if untimed(log):
         print(f"warning: the log's scans carry no timestamps (all {log.scans[0].t:g} s): stamped "
               f"{UNTIMED_DT:g} s apart in file order", file=sys.stderr)
+    if log.saturation is not None:
+        nothing = sum(int(np.count_nonzero(~np.isfinite(sc.ranges))) for sc in log.scans)
+        print(f"notice: the laser saturates at {log.saturation:.1f} m (a band of readings there and hardly any "
+              f"beyond): readings from {log.saturation:.1f} m on are no returns ({nothing} in all); "
+              "--max-range sets the limit by hand", file=sys.stderr)
     if log.skipped:
         print(f"warning: {len(log.skipped)} ODOM line(s) left out (not needed: the odometry is re-integrated "
               f"from the scans' poses); first: {log.skipped[0]}", file=sys.stderr)

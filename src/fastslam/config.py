@@ -82,6 +82,10 @@ class SlamConfig:
     likelihood_free: float = _num(0.0, 0.0, 100.0, "likelihood model: extra cost (as a beam's log-likelihood) of "
                                   "an end point in known free space with no wall within likelihood_max_dist")
     resample_threshold: float = _num(1.0, 0.0, 1.0, "resample when Neff < threshold*N; 1.0 = every update")
+    best_particle: builtins.str = _choice("weight", ("weight", "medoid"),
+                                          "the particle whose map and path are published: weight: the highest "
+                                          "weight; medoid: the weighted medoid of the particles' paths (summed "
+                                          "distances between their positions at every update)")
     # Proposal (improved mode)
     proposal: builtins.str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
     match_min_score: float = _num(0.5, 0.0, 1.0, "scan-match score (fraction of beams on the map) needed to trust it")

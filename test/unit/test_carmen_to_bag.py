@@ -52,6 +52,21 @@ def test_a_log_without_timestamps_gets_a_scan_a_second_and_a_warning(tmp_path, c
     assert "3 scans over 2.0 s" in captured.out
 
 
+def test_a_saturating_laser_is_named_and_its_limit_written_as_range_max(tmp_path, capsys):
+    from fastslam.io.bag_reader import read_bag
+
+    rows = np.random.default_rng(0).uniform(0.5, 20.0, (30, 180))
+    rows[:, :10] = 51.15                      # 300 of 5400 readings at the laser's limit
+    lines = [f"FLASER 180 {' '.join(f'{v:.2f}' for v in r)} {0.1 * k} 0 0 {0.1 * k} 0 0 {k}.0 host {k}.0"
+             for k, r in enumerate(rows, start=1)]
+    (tmp_path / "s.log").write_text("\n".join(lines) + "\n")
+    assert carmen_to_bag.main([str(tmp_path / "s.log"), "--out", str(tmp_path / "s.bag"), "--quiet"]) == 0
+    assert "the laser saturates at 51.0 m" in capsys.readouterr().err
+    bag = read_bag(tmp_path / "s.bag")
+    assert bag.scans[0].range_max == pytest.approx(51.0)
+    assert np.isinf(bag.scans[0].ranges[:10]).all() and np.isfinite(bag.scans[0].ranges[10:]).all()
+
+
 def test_a_log_without_scans_writes_nothing(tmp_path):
     (tmp_path / "odom.log").write_text("ODOM 1.0 2.0 0.5 0.3 0.1 0.0 300.0 host 300.5\n")
     with pytest.raises(ValueError, match="no FLASER or ROBOTLASER1 scans"):

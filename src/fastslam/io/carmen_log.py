@@ -8,7 +8,8 @@ Line formats (CARMEN logger; timestamps in seconds):
   180 or 181 readings (0.5 degrees for 360/361), i.e. ``angle_min = -pi/2`` and
   ``angle_increment = pi / (n - n % 2)``; with 180 readings the last beam is at +89
   degrees, as gmapping's CARMEN reader does. Readings ``>= max_range`` (81.83 m,
-  the SICK "no return" value) mean no return and become ``inf``.
+  the SICK "no return" value, or where the readings show the laser saturating lower:
+  ``saturation_range``) mean no return and become ``inf``.
 - ``ROBOTLASER1 laser_type start_angle fov angular_res max_range accuracy remission_mode
   n r1..rn m rem1..remm laser_x laser_y laser_theta robot_x robot_y robot_theta
   tv rv forward_safety_dist side_safety_dist turn_axis ipc_timestamp host logger_timestamp``
@@ -19,6 +20,7 @@ Everything else (NEFF, TRUEPOS, SYNC, comments, ...) is skipped.
 """
 from __future__ import annotations
 
+import dataclasses
 import gzip
 import math
 import os
@@ -93,6 +95,7 @@ class CarmenLog:
     odometry: list[OdomLine]
     params: dict[str, str]
     skipped: list[str] = field(default_factory=list)  # ODOM lines left out, each with its line and why
+    saturation: float | None = None  # [m] FLASER readings from here on taken as no returns (saturation_range)
 
     @property
     def front_laser_offset(self) -> float:
@@ -223,13 +226,40 @@ def iter_log(lines: Iterator[str] | IO[str], *, max_range: float | None = None
         raise CarmenError(f"line {number + 1}: the file ends early or is corrupt (truncated gzip?): {err}") from None
 
 
+# A laser that finds nothing within its range reports its largest reading: FLASER logs
+# carry no maximum, and besides the SICK's 81.83 m some logs saturate lower (the Orebro
+# log at 32.76 m, the largest millimetre count an int16 holds; Edmonton and Acapulco at
+# 51.1 m). Thousands of readings in one band of a few centimetres at the top of the
+# distribution are that value, not a wall: a wall's readings spread with the robot's
+# positions. Taken as returns, they drew walls 32 m away in every open direction.
+SATURATION_BIN = 0.1        # [m] width of the band
+SATURATION_SHARE = 0.005    # the band holds at least this share of all readings ...
+SATURATION_ABOVE = 0.0005   # ... and at most this share lies beyond it
+
+
+def saturation_range(scans: list[LaserRecord]) -> float | None:
+    """The reading [m] from which the scans' readings are the laser's no-return value:
+    the lower edge, less one band, of the lowest SATURATION_BIN band that holds at least
+    SATURATION_SHARE of the finite readings with at most SATURATION_ABOVE of them beyond
+    it; None when the readings show no such band (or are fewer than 1000)."""
+    r = np.concatenate([s.ranges for s in scans]) if scans else np.zeros(0, np.float32)
+    r = r[np.isfinite(r)]
+    if len(r) < 1000:
+        return None
+    counts = np.bincount((r / SATURATION_BIN).astype(np.intp))
+    beyond = np.cumsum(counts[::-1])[::-1] - counts       # readings in the bands above each band
+    band = np.flatnonzero((counts >= SATURATION_SHARE * len(r)) & (beyond <= SATURATION_ABOVE * len(r)))
+    return None if len(band) == 0 else float((band[0] - 1) * SATURATION_BIN)
+
+
 def read_log(path: str | os.PathLike[str], *, max_range: float | None = None,
              limit: int | None = None) -> CarmenLog:
     """Read a CARMEN log (gzip detected by content).
 
     Args:
         path: the log file.
-        max_range: no-return threshold [m]; default 81.83 for FLASER, the logged value for ROBOTLASER1.
+        max_range: no-return threshold [m]; default 81.83 for FLASER (or lower where the
+            readings show the laser saturating, saturation_range), the logged value for ROBOTLASER1.
         limit: stop after this many laser scans (for quick tests).
     """
     scans: list[LaserRecord] = []
@@ -249,4 +279,13 @@ def read_log(path: str | os.PathLike[str], *, max_range: float | None = None,
             else:
                 name, value = item[1].split(" ", 1)
                 params[name] = value
-    return CarmenLog(scans=scans, odometry=odometry, params=params, skipped=skipped)
+    saturation = None
+    if max_range is None:
+        saturation = saturation_range([sc for sc in scans if sc.kind == "FLASER"])
+        if saturation is not None and saturation < FLASER_MAX_RANGE:
+            scans = [dataclasses.replace(sc, max_range=saturation,
+                                         ranges=np.where(sc.ranges >= saturation, np.inf, sc.ranges).astype(np.float32))
+                     if sc.kind == "FLASER" else sc for sc in scans]
+        else:
+            saturation = None
+    return CarmenLog(scans=scans, odometry=odometry, params=params, skipped=skipped, saturation=saturation)

@@ -61,6 +61,25 @@ def test_same_seed_same_result_and_trajectory_survives_resampling(loop, drifting
     assert np.all(np.diff(traj[:, 0]) > 0)
 
 
+def test_the_medoid_particle_is_that_of_the_paths_through_resampling(loop, drifting, room_ranges):
+    """best_particle medoid: the published particle minimises the weighted sum of its
+    path's distances to the others' (positions at every update, summed), the paths read
+    back through the resamplings."""
+    truth = loop(40)
+    odom = drifting(truth)
+    cfg = SlamConfig(particles=8, seed=3, motion_model="odometry", weight_model="likelihood",
+                     likelihood_max_dist=0.15, resample_threshold=0.9, best_particle="medoid")
+    slam, rng, resampled = FastSlam(cfg), np.random.default_rng(0), 0
+    for t, (pose, o) in enumerate(zip(truth, odom)):
+        ranges = room_ranges(pose, ANGLES) + rng.normal(0, 0.01, 360)
+        info = slam.step(o, Scan(ranges=ranges, angles=ANGLES, range_min=0.12, range_max=3.5, stamp=0.2 * t))
+        resampled += info.resampled
+        paths = np.stack([slam.trajectory(i)[:, 1:3] for i in range(8)])          # (N, T, 2)
+        apart = np.linalg.norm(paths[:, None] - paths[None, :], axis=3).sum(axis=2)
+        assert slam.best == int(np.argmin(slam.weights @ apart))
+    assert 0 < resampled < 40
+
+
 def test_mean_and_covariance_of_the_particles():
     slam = FastSlam(SlamConfig(particles=4, seed=0))
     slam.poses = np.array([[0, 0, np.pi - 0.1], [2, 0, -np.pi + 0.1], [0, 2, np.pi], [2, 2, np.pi]], float)
@@ -239,6 +258,22 @@ def test_tracking_matches_the_scans_between_updates(room_scan, search):
     _map_two_scans(plain, room_scan)
     plain.step(np.array([0.14, 0.0, 0.0]), room_scan(truth, ANGLES, 0.4))
     assert relative(plain.poses[plain.best], plain.live_pose)[0] == pytest.approx(0.14)
+
+
+def test_tracking_skips_scans_after_less_motion_than_track_still(room_scan):
+    from fastslam.filter.slam import TRACK_STILL
+
+    slam = _tracking(track_search="refine")
+    _map_two_scans(slam, room_scan)
+    start = slam.live_pose.copy()
+    # the odometry creeps 3 cm (under TRACK_STILL's 5 cm) while the robot stands: not matched,
+    # the live pose follows the odometry
+    assert TRACK_STILL[0] > 0.03
+    slam.step(np.array([0.03, 0.0, 0.0]), room_scan(np.zeros(3), ANGLES, 0.4))
+    np.testing.assert_allclose(relative(start, slam.live_pose), [0.03, 0.0, 0.0], atol=1e-12)
+    # 14 cm read, 10 cm driven: matched, and the scan puts the pose back within a centimetre
+    slam.step(np.array([0.14, 0.0, 0.0]), room_scan(np.array([0.1, 0.0, 0.0]), ANGLES, 0.6))
+    assert abs(relative(start, slam.live_pose)[0] - 0.1) < 0.01
 
 
 @pytest.mark.parametrize("search", ["search", "refine"])

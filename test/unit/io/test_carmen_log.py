@@ -116,3 +116,55 @@ def test_an_odom_line_with_a_negative_stamp_is_left_out_and_named(tmp_path):
     log = read_log(path)
     assert [o.t for o in log.odometry] == [10.0, 10.2]
     assert log.skipped == ["line 2: ODOM timestamp -1.6 is not in [0, 2^32) s"]
+
+
+def _flaser_log(path, scans):
+    """A FLASER log of the given (n,) readings rows, poses at the origin."""
+    lines = [f"FLASER {len(r)} {' '.join(f'{v:.3f}' for v in r)} 0 0 0 0 0 0 {k}.0 host {k}.0"
+             for k, r in enumerate(scans, start=1)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_band_of_readings_at_the_top_is_the_lasers_no_return_value(tmp_path):
+    rng = np.random.default_rng(0)
+    rows = rng.uniform(0.5, 20.0, (40, 180))
+    rows[:, :10] = 32.767          # 400 of 7200 readings (5.6 %) at one value, nothing beyond
+    rows[0, 10] = 32.70            # a reading inside the band's lower neighbour: no return too
+    rows[0, 11] = 32.55            # below it: a return
+    log = read_log(_flaser_log(tmp_path / "sat.log", rows))
+    assert log.saturation == pytest.approx(32.6)      # band [32.7, 32.8) less one band
+    first = log.scans[0]
+    assert first.max_range == pytest.approx(32.6)
+    assert np.isinf(first.ranges[:11]).all() and first.ranges[11] == pytest.approx(32.55)
+    assert np.isfinite(log.scans[1].ranges[10:]).all()
+
+
+@pytest.mark.parametrize("far", [
+    np.linspace(25.0, 45.0, 400),     # far readings spread over 20 m: walls, not one value
+    np.full(20, 32.767),              # a band of 0.3 %: too few to be the laser's limit
+])
+def test_readings_without_a_band_at_the_top_stay_returns(tmp_path, far):
+    rng = np.random.default_rng(1)
+    rows = rng.uniform(0.5, 20.0, (40, 180))
+    rows.reshape(-1)[:len(far)] = far
+    log = read_log(_flaser_log(tmp_path / "spread.log", rows))
+    assert log.saturation is None
+    assert log.scans[0].max_range == pytest.approx(81.83)
+    assert all(np.isfinite(s.ranges).all() for s in log.scans)
+
+
+def test_a_band_with_readings_beyond_it_is_not_a_limit(tmp_path):
+    rng = np.random.default_rng(2)
+    rows = rng.uniform(0.5, 20.0, (40, 180))
+    rows[:, :10] = 32.767
+    rows[:, 10] = 40.0 + rng.uniform(0.0, 5.0, 40)  # 40 readings (0.56 %) beyond the band: a real wall
+    assert read_log(_flaser_log(tmp_path / "wall.log", rows)).saturation is None
+
+
+def test_max_range_given_by_hand_skips_the_detection(tmp_path):
+    rows = np.random.default_rng(3).uniform(0.5, 20.0, (40, 180))
+    rows[:, :10] = 32.767
+    log = read_log(_flaser_log(tmp_path / "hand.log", rows), max_range=81.83)
+    assert log.saturation is None
+    assert log.scans[0].ranges[0] == pytest.approx(32.767)

@@ -84,8 +84,9 @@ class SlamConfig:
     resample_threshold: float = _num(1.0, 0.0, 1.0, "resample when Neff < threshold*N; 1.0 = every update")
     best_particle: builtins.str = _choice("weight", ("weight", "medoid"),
                                           "the particle whose map and path are published: weight: the highest "
-                                          "weight; medoid: the weighted medoid of the particles' paths (summed "
-                                          "distances between their positions at every update)")
+                                          "weight; medoid: the medoid of the particles' paths (summed distances "
+                                          "between their positions at every update), each weighed by its "
+                                          "weight since the start, carried through resampling")
     # Proposal (improved mode)
     proposal: builtins.str = _choice("odometry", ("odometry", "scan_match"), "how particle poses are proposed")
     match_min_score: float = _num(0.5, 0.0, 1.0, "scan-match score (fraction of beams on the map) needed to trust it")

@@ -98,7 +98,8 @@ class FastSlam:
         self._stamp = -np.inf
         self._refused = False  # a growth was refused in this life (reported once)
         self.history = History()
-        self._apart = np.zeros((n, n))   # best_particle medoid: distances between the paths, summed
+        self._apart = np.zeros((n, n))   # best_particle medoid: distances between the paths, summed,
+        self.path_log_w = np.zeros(n)    # ... and each path's log-weight since the start (never reset)
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
         self._match: Match | None = None              # this update's gated match (match_weight)
@@ -144,9 +145,10 @@ class FastSlam:
         if medoid:
             self._apart += pairwise_distances(self.poses[:, :2])
         resampled, parent = self._resample(w, n_eff)            # 4. low-variance resampling
+        self.path_log_w = self.path_log_w[parent]               # children inherit their parent's path
         if medoid:
-            self._apart = self._apart[parent][:, parent]        # children inherit their parent's path
-            self.best = weighted_medoid(self._apart, self.weights)
+            self._apart = self._apart[parent][:, parent]
+            self.best = weighted_medoid(self._apart, normalise_log(self.path_log_w))
         self.history.append(scan.stamp, self.poses, parent)
         self.updates += 1
         self.live_pose = self.poses[self.best].copy()
@@ -327,6 +329,8 @@ class FastSlam:
         if log_w is not None:
             self.log_w = self.log_w + log_w
             self.log_w -= self.log_w.max()  # only differences matter; keep them small
+            self.path_log_w = self.path_log_w + log_w
+            self.path_log_w -= self.path_log_w.max()
 
     def _normaliser_terms(self, match: Match, points: int) -> NDArray[np.float64]:
         """(N,) what the improved proposal's weight adds to the likelihood at the match of

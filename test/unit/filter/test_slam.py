@@ -61,23 +61,45 @@ def test_same_seed_same_result_and_trajectory_survives_resampling(loop, drifting
     assert np.all(np.diff(traj[:, 0]) > 0)
 
 
+class _Recording(FastSlam):
+    """FastSlam that keeps what each resampling saw: the paths' log-weights and the parents."""
+
+    def _resample(self, w, n_eff):
+        self.path_before = self.path_log_w.copy()
+        resampled, parent = super()._resample(w, n_eff)
+        self.parent = parent
+        return resampled, parent
+
+
 def test_the_medoid_particle_is_that_of_the_paths_through_resampling(loop, drifting, room_ranges):
-    """best_particle medoid: the published particle minimises the weighted sum of its
-    path's distances to the others' (positions at every update, summed), the paths read
-    back through the resamplings."""
+    """best_particle medoid: the published particle minimises the sum of its path's
+    distances to the others' (positions at every update, summed), each weighed by that
+    path's weight since the start (log-weights carried through resampling, never reset)."""
     truth = loop(40)
     odom = drifting(truth)
     cfg = SlamConfig(particles=8, seed=3, motion_model="odometry", weight_model="likelihood",
                      likelihood_max_dist=0.15, resample_threshold=0.9, best_particle="medoid")
-    slam, rng, resampled = FastSlam(cfg), np.random.default_rng(0), 0
+    slam, rng, resampled = _Recording(cfg), np.random.default_rng(0), 0
     for t, (pose, o) in enumerate(zip(truth, odom)):
         ranges = room_ranges(pose, ANGLES) + rng.normal(0, 0.01, 360)
         info = slam.step(o, Scan(ranges=ranges, angles=ANGLES, range_min=0.12, range_max=3.5, stamp=0.2 * t))
         resampled += info.resampled
+        # the paths' weights: the parents' at a resampling (the current weights start again)
+        np.testing.assert_array_equal(slam.path_log_w, slam.path_before[slam.parent])
+        if info.resampled:
+            np.testing.assert_array_equal(slam.log_w, np.zeros(8))
         paths = np.stack([slam.trajectory(i)[:, 1:3] for i in range(8)])          # (N, T, 2)
         apart = np.linalg.norm(paths[:, None] - paths[None, :], axis=3).sum(axis=2)
-        assert slam.best == int(np.argmin(slam.weights @ apart))
+        path_w = np.exp(slam.path_log_w - slam.path_log_w.max())
+        assert slam.best == int(np.argmin((path_w / path_w.sum()) @ apart))
     assert 0 < resampled < 40
+
+
+def test_the_paths_weights_are_the_weights_until_a_resampling(loop, drifting, run_room):
+    slam = run_room(SlamConfig(particles=6, seed=2, motion_model="odometry", weight_model="likelihood",
+                               likelihood_max_dist=0.15, resample_threshold=0.0), loop(20), drifting(loop(20)))
+    assert np.ptp(slam.log_w) > 1.0                  # weights that differ, never resampled
+    np.testing.assert_allclose(slam.path_log_w, slam.log_w, atol=1e-9)
 
 
 def test_mean_and_covariance_of_the_particles():

@@ -6,12 +6,13 @@ import rospy
 
 from assign5 import params
 from assign5.malloc import one_malloc_arena
+from assign5.signals import init_node
 from assign5.slam_node import SlamNode
 
 
 def main() -> int:
     one_malloc_arena()  # before rospy starts its threads
-    rospy.init_node("slam")
+    init_node("slam")  # SIGTERM during start-up hung rospy's own shutdown (assign5/signals.py)
     node_cfg, slam_cfg = params.load()
     try:
         node = SlamNode(node_cfg, slam_cfg)

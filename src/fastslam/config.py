@@ -136,6 +136,9 @@ class SlamConfig:
     match_recover: float = _num(0.0, 0.0, 100.0, "match_prior: motion: when no particle's match is trusted, "
                                 "search again with this many times the motion model's std-devs (window, prior "
                                 "and gate) and trust only matches with match_good_score; 0 = off")
+    match_recover_share: float = _num(0.0, 0.0, 1.0, "match_recover: trust its matches only when at least this "
+                                      "share of the particles found one (a few: an ambiguity, as along a "
+                                      "corridor, not a place found again); 0 = any")
     match_gate: float = _num(0.0, 0.0, 100.0, "distrust a match farther from the noise-free motion prediction than "
                              "this many std-devs of the motion model (match_prior: motion); 0 = off")
     track_scans: bool = field(default=False, metadata={

@@ -267,9 +267,12 @@ class FastSlam:
     def _recover(self, beams: Beams) -> Match:
         """No match trusted (drift has made the maps disagree with the scan, as on
         returning to a place seen long ago): one wider search, match_recover times the
-        motion model, trusting only the matches that explain the scan well."""
+        motion model, trusting only the matches that explain the scan well, and only when
+        at least match_recover_share of the particles find one."""
         match = self._match_gated(beams, self._motion_std * self.cfg.match_recover)
         good = match.trusted if match.score is None else match.trusted & (match.score >= self.cfg.match_good_score)
+        if good.mean() < self.cfg.match_recover_share:
+            good = np.zeros_like(good)  # a few particles' maps only: an ambiguity, not a place found again
         self.recoveries += int(good.any())
         return replace(match, trusted=good)
 

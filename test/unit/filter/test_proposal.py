@@ -238,18 +238,22 @@ def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_s
     assert weights[1][0] == pytest.approx(weights[1][1], abs=1e-9)
 
 
-def _slipped(room_scan: Callable[..., Scan], recover: float, good: float = 0.6) -> FastSlam:
+def _slipped(room_scan: Callable[..., Scan], recover: float, good: float = 0.6, share: float = 0.0,
+             lost: float = 0.0, resample: float = 1.0) -> FastSlam:
     """Two particles map the pillar room along x with exact odometry; then the wheels
     slip: odometry moves 0.05 m, the robot 0.4 m, far outside the step's window (3 std-devs
-    of at least 0.02 m: 0.06 m), so no match there is trusted."""
+    of at least 0.02 m: 0.06 m), so no match there is trusted. lost: particle 1 is put that
+    far off in y before the slip; resample: resample_threshold."""
     cfg = SlamConfig(**REAL, particles=2, seed=0, toggle_noise=0, max_range=3.5, weight_model="likelihood",
                      match_window=3, match_gate=3.5, match_good_score=good, match_min_score=0.3,
                      match_min_known=20, match_max_free=0.2, match_floor_xy=0.02, match_floor_theta=0.01,
-                     match_xy_range=1.0, match_theta_range=0.5, match_recover=recover)
+                     match_xy_range=1.0, match_theta_range=0.5, match_recover=recover, match_recover_share=share,
+                     resample_threshold=resample)
     slam = FastSlam(cfg)
     for i in range(7):
         pose = np.array([-0.3 + 0.05 * i, 0.0, 0.0])
         slam.step(pose, room_scan(pose, ANGLES, stamp=float(i)))
+    slam.poses[1, 1] += lost
     slam.step(np.array([0.05, 0.0, 0.0]), room_scan(np.array([0.4, 0.0, 0.0]), ANGLES, stamp=7.0))
     return slam
 
@@ -261,6 +265,19 @@ def test_a_slip_beyond_the_window_is_found_by_the_wider_search_only(room_scan):
     found = _slipped(room_scan, recover=8)            # 8 x 3 x 0.02 m = 0.48 m of window
     np.testing.assert_allclose(found.poses[:, :2], [[0.4, 0.0]] * 2, atol=0.03)
     assert found.recoveries == 1
+
+
+def test_the_wider_search_is_trusted_only_when_enough_particles_find_a_match(room_scan):
+    """match_recover_share: particle 1, put 1 m off, finds nothing within 0.48 m; particle
+    0 finds the slip. One of two: trusted at a share of 0.5, not at 0.6 (no resampling,
+    which would copy the found particle over the lost one)."""
+    half = _slipped(room_scan, recover=8, share=0.5, lost=1.0, resample=0.0)
+    assert half.recoveries == 1
+    np.testing.assert_allclose(half.poses[0, :2], [0.4, 0.0], atol=0.03)
+    np.testing.assert_allclose(half.poses[1, :2], [0.05, 1.0], atol=0.03)      # its odometry
+    more = _slipped(room_scan, recover=8, share=0.6, lost=1.0, resample=0.0)
+    assert more.recoveries == 0
+    np.testing.assert_allclose(more.poses[:, :2], [[0.05, 0.0], [0.05, 1.0]], atol=0.03)
 
 
 def test_the_wider_search_trusts_only_a_good_match(room_scan):

@@ -39,7 +39,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 TRIM_GROUPS = 4
 # track_scans: a robot that moved less than this since the last match is not matched
 # again (odometry errs by millimetres over so short a move; the ACES bag at 5-10 Hz:
-# 19 % less time, its relations within 0.0002 m, docs/benchmarks.md round 9)
+# 9-15 % less CPU, its relations within 0.0002 m, docs/benchmarks.md round 9)
 TRACK_STILL = (0.05, 0.02)  # [m], [rad]
 
 

@@ -99,7 +99,7 @@ class FastSlam:
         self._refused = False  # a growth was refused in this life (reported once)
         self.history = History()
         self._apart = np.zeros((n, n))   # best_particle medoid: distances between the paths, summed,
-        self.path_log_w = np.zeros(n)    # ... and each path's log-weight since the start (never reset)
+        self.path_log_w = np.zeros(n)    # ... and each path's log-weight since the start (kept at resampling)
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
         self._match: Match | None = None              # this update's gated match (match_weight)

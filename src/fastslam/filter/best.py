@@ -8,7 +8,7 @@ The weighted medoid of the particles' paths, the one whose path lies nearest the
 others' in the weights' measure, is the particle set's robust centre: it equals the
 heaviest particle when one holds nearly all the weight, and the consensus when none does.
 The filter weighs each path by its weight since the start (FastSlam.path_log_w: the
-log-weights carried through resampling, never reset, as gmapping's weightSum), the
+log-weights carried through resampling, not reset there, as gmapping's weightSum), the
 evidence for the whole trajectory: on the Orebro log a few particles kept the right
 corridor after a 2.9 m step with a 5-sigma odometry error and only the path weights
 knew them (ATE 0.35 m against the consensus' 8.1 m).

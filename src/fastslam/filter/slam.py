@@ -98,8 +98,8 @@ class FastSlam:
         self._stamp = -np.inf
         self._refused = False  # a growth was refused in this life (reported once)
         self.history = History()
-        self._apart = np.zeros((n, n))   # best_particle medoid: distances between the paths, summed,
-        self.path_log_w = np.zeros(n)    # ... and each path's log-weight since the start (kept at resampling)
+        self._apart = np.zeros((n, n))   # best_particle medoid: distances between the paths, summed
+        self._carried = np.zeros(n)      # each path's log-weight up to the last resampling (path_log_w)
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
         self._match: Match | None = None              # this update's gated match (match_weight)
@@ -145,9 +145,7 @@ class FastSlam:
         if medoid:
             self._apart += pairwise_distances(self.poses[:, :2])
         resampled, parent = self._resample(w, n_eff)            # 4. low-variance resampling
-        self.path_log_w = self.path_log_w[parent]               # children inherit their parent's path
         if medoid:
-            self._apart = self._apart[parent][:, parent]
             self.best = weighted_medoid(self._apart, normalise_log(self.path_log_w))
         self.history.append(scan.stamp, self.poses, parent)
         self.updates += 1
@@ -332,8 +330,6 @@ class FastSlam:
         if log_w is not None:
             self.log_w = self.log_w + log_w
             self.log_w -= self.log_w.max()  # only differences matter; keep them small
-            self.path_log_w = self.path_log_w + log_w
-            self.path_log_w -= self.path_log_w.max()
 
     def _normaliser_terms(self, match: Match, points: int) -> NDArray[np.float64]:
         """(N,) what the improved proposal's weight adds to the likelihood at the match of
@@ -368,8 +364,17 @@ class FastSlam:
         parent = slot_parents(low_variance_indices(w, self.rng))
         self.poses = self.poses[parent]
         self.grid.reorder(parent)
+        self._carried = self.path_log_w[parent]     # children inherit their parent's path: its weight,
+        if self.cfg.best_particle == "medoid":
+            self._apart = self._apart[parent][:, parent]   # its distances to the others' paths
         self.log_w = np.zeros(n)
         return True, parent
+
+    @property
+    def path_log_w(self) -> NDArray[np.float64]:
+        """(N,) each particle's path's log-weight since the start: the log-weights carried
+        through resampling (not reset there, as gmapping's weightSum), up to a constant."""
+        return self._carried + self.log_w
 
     # -- results ---------------------------------------------------------------------
     def trajectory(self, particle: int | None = None) -> NDArray[np.float64]:

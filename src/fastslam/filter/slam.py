@@ -103,6 +103,9 @@ class FastSlam:
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
         self._match: Match | None = None              # this update's gated match (match_weight)
+        # This update's poses for the paths and map->odom: the trusted matches themselves, not the
+        # samples drawn round them (those only spread the particles; their noise adds to the path).
+        self._centre: NDArray[np.float64] | None = None
         self.live_pose = np.zeros(3)
         self._live_odom: NDArray[np.float64] | None = None    # odometry at that scan
         self._match_odom: NDArray[np.float64] | None = None   # ... at its last match
@@ -147,9 +150,10 @@ class FastSlam:
         resampled, parent = self._resample(w, n_eff)            # 4. low-variance resampling
         if medoid:
             self.best = weighted_medoid(self._apart, normalise_log(self.path_log_w))
-        self.history.append(scan.stamp, self.poses, parent)
+        centre, self._centre = (self.poses if self._centre is None else self._centre), None
+        self.history.append(scan.stamp, centre, parent)
         self.updates += 1
-        self.live_pose = self.poses[self.best].copy()
+        self.live_pose = centre[self.best].copy()
         self._live_odom = self._match_odom = odom
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
@@ -296,6 +300,8 @@ class FastSlam:
         else:
             sample = match.poses + (cholesky3(match.covariance) * z[:, None, :]).sum(axis=2)  # L z
         sample[:, 2] = wrap_angle(sample[:, 2])
+        self._centre = np.where(match.trusted[:, None], match.poses, self.poses)
+        self._centre[:, 2] = wrap_angle(self._centre[:, 2])
         self.poses[match.trusted] = sample[match.trusted]
 
     def _observe(self, beams: Beams) -> None:
@@ -363,6 +369,8 @@ class FastSlam:
             return False, np.arange(n)
         parent = slot_parents(low_variance_indices(w, self.rng))
         self.poses = self.poses[parent]
+        if self._centre is not None:
+            self._centre = self._centre[parent]
         self.grid.reorder(parent)
         self._carried = self.path_log_w[parent]     # children inherit their parent's path: its weight,
         if self.cfg.best_particle == "medoid":

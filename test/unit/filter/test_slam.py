@@ -247,14 +247,14 @@ def test_the_live_pose_between_updates_is_the_best_pose_moved_by_odometry(room_s
     np.testing.assert_allclose(slam.live_pose, [1.0, 2.15, np.pi / 2], atol=1e-12)  # 0.15 m ahead = +y
 
 
-def _tracking(**kw) -> FastSlam:
+def _tracking(cls: type = FastSlam, **kw) -> FastSlam:
     """The improved mode in the pillar room, exact odometry up to the last scan, gating
     0.5 m: scans at -0.5 and 0 m are updates, the map is theirs."""
     base = dict(particles=3, seed=0, toggle_noise=0, motion_model="odometry", weight_model="likelihood",
                 proposal="scan_match", match_prior="motion", match_window=3.0, match_gate=3.5,
                 match_good_score=1.0, match_refine="icp", match_min_known=20, match_beams=90,
                 linear_update=0.5, angular_update=0.5, track_scans=True, track_search="search")
-    slam = FastSlam(SlamConfig(**{**base, **kw}))
+    slam = cls(SlamConfig(**{**base, **kw}))
     return slam
 
 
@@ -264,11 +264,33 @@ def _map_two_scans(slam: FastSlam, room_scan) -> None:
         assert slam.step(pose, room_scan(pose, ANGLES, 0.2 * i)).processed
 
 
+def test_paths_and_the_live_pose_take_the_matches_not_the_samples_round_them(room_scan):
+    """The samples drawn round each trusted match spread the particles (and their maps);
+    the paths and map->odom keep the match itself: the sample's noise would add to them."""
+    class Seen(FastSlam):
+        matches: list = []
+
+        def _sample_around(self, match):
+            self.matches.append(match)
+            super()._sample_around(match)
+
+    slam = _tracking(Seen, particles=4, match_sigma_xy=0.03, match_sigma_theta=0.02, resample_threshold=0.0)
+    _map_two_scans(slam, room_scan)
+    pose = np.array([0.5, 0.0, 0.0])
+    assert slam.step(pose, room_scan(pose, ANGLES, 0.4)).processed
+    match = Seen.matches[-1]
+    assert match.trusted.all()
+    for i in range(4):
+        np.testing.assert_array_equal(slam.trajectory(i)[-1, 1:], match.poses[i])
+    np.testing.assert_array_equal(slam.live_pose, match.poses[slam.best])
+    assert np.abs(slam.poses[:, :2] - match.poses[:, :2]).max() > 0.01    # the particles: the samples
+
+
 @pytest.mark.parametrize("search", ["search", "refine"])
 def test_tracking_matches_the_scans_between_updates(room_scan, search):
     slam = _tracking(track_search=search)
     _map_two_scans(slam, room_scan)
-    start = slam.live_pose.copy()
+    start = slam.poses[slam.best].copy()   # the pose its last scan was drawn into the map from
     truth = np.array([0.1, 0.0, 0.0])
     # odometry reads 4 cm too far (with 0.05 m floors: 0.8 std-devs of the motion model)
     info = slam.step(np.array([0.14, 0.0, 0.0]), room_scan(truth, ANGLES, 0.4))
@@ -279,7 +301,7 @@ def test_tracking_matches_the_scans_between_updates(room_scan, search):
     plain = _tracking(track_scans=False)
     _map_two_scans(plain, room_scan)
     plain.step(np.array([0.14, 0.0, 0.0]), room_scan(truth, ANGLES, 0.4))
-    assert relative(plain.poses[plain.best], plain.live_pose)[0] == pytest.approx(0.14)
+    assert relative(plain.trajectory()[-1, 1:], plain.live_pose)[0] == pytest.approx(0.14)
 
 
 def test_tracking_skips_scans_after_less_motion_than_track_still(room_scan):
@@ -305,7 +327,7 @@ def test_tracking_with_the_window_prior_matches_too(room_scan, search):
     slam = _tracking(track_search=search, match_prior="window", match_window=0.0, match_gate=0.0,
                      match_xy_range=0.1, match_theta_range=0.05)
     _map_two_scans(slam, room_scan)
-    start = slam.live_pose.copy()
+    start = slam.poses[slam.best].copy()   # the pose its last scan was drawn into the map from
     info = slam.step(np.array([0.14, 0.0, 0.0]), room_scan(np.array([0.1, 0.0, 0.0]), ANGLES, 0.4))
     assert not info.processed
     moved = relative(start, slam.live_pose)
@@ -338,4 +360,4 @@ def test_tracking_leaves_particles_maps_and_weights_alone(room_scan):
     np.testing.assert_array_equal(slam.log_w, log_w)
     # the next update starts from the particles' own poses: the odometry since the last update
     assert slam.step(np.array([0.5, 0.0, 0.0]), room_scan(np.array([0.5, 0.0, 0.0]), ANGLES, 0.6)).processed
-    np.testing.assert_allclose(slam.live_pose, slam.poses[slam.best])
+    np.testing.assert_allclose(slam.live_pose, slam.trajectory()[-1, 1:])

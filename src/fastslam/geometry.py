@@ -61,6 +61,31 @@ def relative(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     return compose(inverse(a), b)
 
 
+def _v_terms(theta: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """sin(t)/t and (1 - cos(t))/t: the entries of SE(2)'s V matrix (1 and 0 near t = 0)."""
+    small = np.abs(theta) < 1e-9
+    t = np.where(small, 1.0, theta)
+    return np.where(small, 1.0, np.sin(t) / t), np.where(small, 0.0, (1.0 - np.cos(t)) / t)
+
+
+def pose_log(a: ArrayLike) -> NDArray[np.float64]:
+    """The twist (u, v, theta) whose exponential is pose a (..., 3): a motion at constant
+    speed and turn rate, so pose_exp(f * pose_log(a)) is the share f of a along that arc."""
+    a = np.asarray(a, dtype=float)
+    p, q = _v_terms(a[..., 2])
+    det = p * p + q * q
+    return np.stack([(p * a[..., 0] + q * a[..., 1]) / det,
+                     (p * a[..., 1] - q * a[..., 0]) / det, a[..., 2]], axis=-1)
+
+
+def pose_exp(xi: ArrayLike) -> NDArray[np.float64]:
+    """The pose (..., 3) reached by the twist xi (..., 3) (pose_log's inverse, |theta| < pi)."""
+    xi = np.asarray(xi, dtype=float)
+    p, q = _v_terms(xi[..., 2])
+    return np.stack([p * xi[..., 0] - q * xi[..., 1], q * xi[..., 0] + p * xi[..., 1],
+                     wrap_angle(xi[..., 2])], axis=-1)
+
+
 def circular_mean(angles: ArrayLike, weights: ArrayLike | None = None) -> float:
     """Weighted mean direction; plain averaging breaks across +-pi."""
     angles = np.asarray(angles, dtype=float)

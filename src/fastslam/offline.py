@@ -7,12 +7,15 @@
 Reads the bag with `rosbags` or ROS's `rosbag`, takes the laser mounting from /tf_static or /tf, feeds
 every scan and odometry message through the same Frontend and FastSlam.step as the
 slam.py node, and writes DIR/map.pgm + map.yaml (map_server format), map.png,
-stats.json, the effective config.yaml and three trajectories (header stamps;
+stats.json, the effective config.yaml and four trajectories (header stamps;
 `t x y theta`, or TUM's `t x y z qx qy qz qw` with --format tum):
 trajectory.txt, the final best particle, one pose per processed scan;
 trajectory_scans.txt, the same path at every scan the filter saw, the motion since
 the last processed scan composed onto it in between (the odometry's, or with
-track_scans the scan matcher's against the best map); live_poses.txt, one pose per
+track_scans the scan matcher's against the best map); trajectory_smoothed.txt, the same
+with hindsight: between two processed scans, that motion bent to end on the particle's
+pose at the second, the gap spread by distance (the best offline estimate: relations
+and ATE); live_poses.txt, one pose per
 scan as map->odom gave it during the run: the best particle at the last processed
 scan, moved since by that same motion (FastSlam.live_pose, as the node publishes it).
 The node's stream rules and bounds apply (fastslam.filter.frontend, filter.budget); a
@@ -48,6 +51,7 @@ from fastslam.filter.budget import AUTO_SHARE, Limits, startup_problem
 from fastslam.filter.frontend import Dropped, Frontend, Reset, drop_key
 from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.slam import FastSlam
+from fastslam.filter.smooth import spread_gaps
 from fastslam.geometry import compose, relative
 from fastslam.io.bag_reader import REFERENCE_TOPIC, BagData, read_bag
 from fastslam.io.map_files import save_map
@@ -94,12 +98,16 @@ class OfflineResult:
         rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
         return rows[:, [0, 4, 5, 6]]
 
+    def _last_life(self) -> NDArray[np.float64]:
+        """The scan rows of the filter's last life (after its last reset)."""
+        rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
+        return rows[rows[:, 8] == rows[-1, 8]] if len(rows) else rows
+
     def scan_trajectory(self) -> NDArray[np.float64]:
         """(S, 4) rows t, x, y, theta: the final best particle's path at every scan of the
         filter's last life; between processed scans, the live pose's motion since the
         last one (odometry, or tracked with track_scans) composed onto its pose."""
-        rows = np.array(self.scan_rows, dtype=np.float64).reshape(-1, 10)
-        rows = rows[rows[:, 8] == rows[-1, 8]] if len(rows) else rows
+        rows = self._last_life()
         if not len(rows):
             return np.zeros((0, 4))
         t, live = rows[:, 0], rows[:, 4:7]
@@ -111,6 +119,15 @@ class OfflineResult:
         poses = compose(traj[k, 1:], relative(at_update[k], live))
         poses[done] = traj[k[done], 1:]          # exactly, not through a zero motion
         return np.concatenate([t[:, None], poses], axis=1)
+
+    def smoothed_trajectory(self) -> NDArray[np.float64]:
+        """(S, 4) scan_trajectory with hindsight: between two processed scans, the motion
+        since the first bent to end on the particle's pose at the second (filter.smooth)."""
+        rows, every = self._last_life(), self.scan_trajectory()
+        if not len(rows):
+            return every
+        poses = spread_gaps(every[:, 1:], rows[:, 9] > 0, rows[:, 1:4])
+        return np.concatenate([every[:, :1], poses], axis=1)
 
     def stats(self) -> dict[str, Any]:
         ms = np.array(self.update_ms) if self.update_ms else np.zeros(1)
@@ -198,6 +215,10 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     write_trajectory(out / "trajectory_scans.txt", every[:, 0], every[:, 1:], fmt=fmt,
                      comment="final best particle at every scan: its pose at the last processed scan "
                              f"composed with the motion since ({since})")
+    smooth = result.smoothed_trajectory()
+    write_trajectory(out / "trajectory_smoothed.txt", smooth[:, 0], smooth[:, 1:], fmt=fmt,
+                     comment="trajectory_scans with hindsight: between two processed scans, the motion since "
+                             "the first bent to end on the pose at the second")
     live = result.live_poses()
     write_trajectory(out / "live_poses.txt", live[:, 0], live[:, 1:], fmt=fmt,
                      comment="live map->odom composed with the odometry, one pose per scan: the best "

@@ -13,6 +13,8 @@ from fastslam.geometry import (
     cos_sin,
     inv3,
     inverse,
+    pose_exp,
+    pose_log,
     relative,
     solve3,
     transform_points,
@@ -119,3 +121,19 @@ def test_cos_sin_of_a_strided_view_equals_that_of_its_copy(rng):
     np.testing.assert_allclose(s, np.sin(view), rtol=0, atol=1e-15)
     c0, s0 = cos_sin(np.pi / 2)
     assert c0.shape == () and s0 == 1.0 and abs(c0) < 1e-15
+
+
+def test_pose_exp_of_a_quarter_circle_by_hand():
+    # a twist of pi/2 forward and pi/2 turned: the quarter circle of radius 1 to (1, 1), facing +y
+    np.testing.assert_allclose(pose_exp([np.pi / 2, 0.0, np.pi / 2]), [1.0, 1.0, np.pi / 2], atol=1e-12)
+    np.testing.assert_allclose(pose_log([1.0, 1.0, np.pi / 2]), [np.pi / 2, 0.0, np.pi / 2], atol=1e-12)
+    # half the twist: half way round the same circle (centre (0, 1)), 45 degrees on
+    half = pose_exp(0.5 * pose_log([1.0, 1.0, np.pi / 2]))
+    np.testing.assert_allclose(half, [np.sqrt(0.5), 1.0 - np.sqrt(0.5), np.pi / 4], atol=1e-12)
+
+
+def test_pose_log_without_turn_is_the_translation_and_round_trips():
+    np.testing.assert_allclose(pose_log([2.0, -3.0, 0.0]), [2.0, -3.0, 0.0], atol=0)
+    rng = np.random.default_rng(3)
+    poses = np.column_stack([rng.uniform(-5, 5, (50, 2)), rng.uniform(-3.1, 3.1, 50)])
+    np.testing.assert_allclose(pose_exp(pose_log(poses)), poses, atol=1e-9)

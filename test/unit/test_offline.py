@@ -50,11 +50,11 @@ def test_write_results(tmp_path, room_ranges):
     offline.write_results(out, result, cfg)
     assert sorted(p.name for p in out.iterdir()) == ["config.yaml", "live_poses.txt", "map.pgm", "map.png",
                                                     "map.yaml", "stats.json", "trajectory.txt",
-                                                    "trajectory_scans.txt"]
+                                                    "trajectory_scans.txt", "trajectory_smoothed.txt"]
     t, poses = read_trajectory(out / "trajectory.txt")
     np.testing.assert_array_equal(np.c_[t, poses], result.slam.trajectory())
     # the two scans the filter saw were both processed: every-scan files are the trajectory itself
-    for name in ("trajectory_scans.txt", "live_poses.txt"):
+    for name in ("trajectory_scans.txt", "trajectory_smoothed.txt", "live_poses.txt"):
         t, poses = read_trajectory(out / name)
         np.testing.assert_array_equal(np.c_[t, poses], result.slam.trajectory())
     occ, res, origin = load_map(out / "map.yaml")

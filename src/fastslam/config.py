@@ -139,6 +139,9 @@ class SlamConfig:
     match_recover_share: float = _num(0.0, 0.0, 1.0, "match_recover: trust its matches only when at least this "
                                       "share of the particles found one (a few: an ambiguity, as along a "
                                       "corridor, not a place found again); 0 = any")
+    path_match_scale: float = _num(0.0, 0.0, 1000.0, "published paths (scan_match): each particle's last path "
+                                   "pose moved by the odometry, corrected by its match with the ICP's information "
+                                   "scaled by this (ICP counts every end point as independent); 0 = the match as is")
     match_gate: float = _num(0.0, 0.0, 100.0, "distrust a match farther from the noise-free motion prediction than "
                              "this many std-devs of the motion model (match_prior: motion); 0 = off")
     track_scans: bool = field(default=False, metadata={

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Tuple
 import numpy as np
 
 from fastslam.config import SlamConfig
-from fastslam.geometry import cos_sin, inv3, wrap_angle
+from fastslam.geometry import cos_sin, inv3, solve3, wrap_angle
 from fastslam.match import Match, MatchParams
 from fastslam.match.refine import prior_information
 
@@ -74,6 +74,21 @@ def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
     good = match.score >= cfg.match_good_score
     near = within_motion(match.poses, predicted, motion_spread(cfg, motion_std), cfg.match_gate)
     return replace(match, trusted=match.trusted & (good | near))
+
+
+def fuse_with_motion(matched: NDArray[np.float64], predicted: NDArray[np.float64], spread: NDArray[np.float64],
+                     scan_information: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N, 3) the poses that best agree with both the matches (N, 3), of information
+    scan_information (N, 3, 3), and the motion predictions (N, 3), of std-devs spread (3,)
+    along and across their headings and of the heading: the prediction moved towards the
+    match as far as the scan knows each direction better than the motion (along a
+    featureless corridor, hardly at all)."""
+    prior = prior_information(predicted, spread)
+    d = matched - predicted
+    d[:, 2] = wrap_angle(d[:, 2])
+    fused = predicted + solve3(scan_information + prior, np.einsum("nij,nj->ni", scan_information, d))
+    fused[:, 2] = wrap_angle(fused[:, 2])
+    return fused
 
 
 def normaliser_log_terms(poses: NDArray[np.float64], predicted: NDArray[np.float64], spread: NDArray[np.float64],

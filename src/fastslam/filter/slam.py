@@ -20,7 +20,7 @@ from fastslam.filter.budget import Limits
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
 from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
-from fastslam.filter.proposal import gate_match, match_request, motion_spread, normaliser_log_terms
+from fastslam.filter.proposal import fuse_with_motion, gate_match, match_request, motion_spread, normaliser_log_terms
 from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
 from fastslam.filter.tiles import TileMaps
@@ -106,6 +106,10 @@ class FastSlam:
         # This update's poses for the paths and map->odom: the trusted matches themselves, not the
         # samples drawn round them (those only spread the particles; their noise adds to the path).
         self._centre: NDArray[np.float64] | None = None
+        # path_match_scale: each path's last pose, moved by this update's odometry, and its next pose
+        self._path_pose: NDArray[np.float64] | None = None
+        self._path_predicted: NDArray[np.float64] | None = None
+        self._path_next: NDArray[np.float64] | None = None
         self.live_pose = np.zeros(3)
         self._live_odom: NDArray[np.float64] | None = None    # odometry at that scan
         self._match_odom: NDArray[np.float64] | None = None   # ... at its last match
@@ -151,7 +155,10 @@ class FastSlam:
         if medoid:
             self.best = weighted_medoid(self._apart, normalise_log(self.path_log_w))
         centre, self._centre = (self.poses if self._centre is None else self._centre), None
-        self.history.append(scan.stamp, centre, parent)
+        path, self._path_next = (centre if self._path_next is None else self._path_next), None
+        if self.cfg.path_match_scale > 0:
+            self._path_pose = path
+        self.history.append(scan.stamp, path, parent)
         self.updates += 1
         self.live_pose = centre[self.best].copy()
         self._live_odom = self._match_odom = odom
@@ -187,6 +194,9 @@ class FastSlam:
             self._apply_motion(self._predicted, odom, noise=False)
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
+        if self._path_pose is not None:
+            self._path_predicted = self._path_pose.copy()
+            self._apply_motion(self._path_predicted, odom, noise=False)
         self._apply_motion(self.poses, odom, noise=bool(cfg.toggle_noise))
 
     def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray[np.float64], noise: bool) -> None:
@@ -302,6 +312,12 @@ class FastSlam:
         sample[:, 2] = wrap_angle(sample[:, 2])
         self._centre = np.where(match.trusted[:, None], match.poses, self.poses)
         self._centre[:, 2] = wrap_angle(self._centre[:, 2])
+        if self._path_predicted is not None and match.scan_information is not None:
+            # the path: its own last pose moved by the odometry, corrected by the match where the
+            # scan pins the pose down (ICP's information scaled down: it counts every end point as independent)
+            fused = fuse_with_motion(match.poses, self._path_predicted, motion_spread(cfg, self._motion_std),
+                                     cfg.path_match_scale * match.scan_information)
+            self._path_next = np.where(match.trusted[:, None], fused, self._path_predicted)
         self.poses[match.trusted] = sample[match.trusted]
 
     def _observe(self, beams: Beams) -> None:
@@ -371,6 +387,8 @@ class FastSlam:
         self.poses = self.poses[parent]
         if self._centre is not None:
             self._centre = self._centre[parent]
+        if self._path_next is not None:
+            self._path_next = self._path_next[parent]
         self.grid.reorder(parent)
         self._carried = self.path_log_w[parent]     # children inherit their parent's path: its weight,
         if self.cfg.best_particle == "medoid":

@@ -11,7 +11,7 @@ import pytest
 
 from fastslam.config import ConfigError, SlamConfig
 from fastslam.filter.motion import odometry_std
-from fastslam.filter.proposal import gate_match, match_request, normaliser_log_terms, within_motion
+from fastslam.filter.proposal import fuse_with_motion, gate_match, match_request, normaliser_log_terms, within_motion
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
 from fastslam.match import Match, MatchParams, match_poses
@@ -39,6 +39,25 @@ def test_mahalanobis_gate_in_the_frame_of_the_prediction():
     np.testing.assert_array_equal(within_motion(poses, predicted, std, 3.0), [True, True])      # 8, 9 <= 9
     np.testing.assert_array_equal(within_motion(poses, predicted, std, 2.9), [True, False])     # 8 <= 8.41 < 9
     np.testing.assert_array_equal(within_motion(poses, predicted, std, 2.8), [False, False])    # 7.84 < 8
+
+
+def test_fusing_a_match_with_the_motion_by_hand():
+    # the scan knows x with information 4 / m^2, nothing of y nor of the heading; the motion
+    # has std-devs 0.5 m, 0.5 m, 0.5 rad (information 4 each), heading 0: along x the fused
+    # pose goes half way to the match, along y and in heading it stays with the prediction
+    scan = np.diag([4.0, 0.0, 0.0])[None]
+    fused = fuse_with_motion(np.array([[1.2, 2.2, 0.1]]), np.array([[1.0, 2.0, 0.0]]), np.array([0.5, 0.5, 0.5]), scan)
+    np.testing.assert_allclose(fused, [[1.1, 2.0, 0.0]], atol=1e-12)
+    # turned by 90 degrees the motion's along/across swap: across 0.1 m std-dev (information 100)
+    fused = fuse_with_motion(np.array([[1.2, 2.0, np.pi / 2]]), np.array([[1.0, 2.0, np.pi / 2]]),
+                             np.array([0.5, 0.1, 0.5]), scan)
+    np.testing.assert_allclose(fused, [[1.0 + 0.2 * 4 / 104, 2.0, np.pi / 2]], atol=1e-12)
+    # a scan that knows everything far better than the motion: the match; headings wrap
+    sure = np.diag([1e12, 1e12, 1e12])[None]
+    fused = fuse_with_motion(np.array([[0.0, 0.0, np.pi - 0.01]]), np.array([[0.0, 0.0, -np.pi + 0.01]]),
+                             np.array([0.5, 0.5, 0.5]), sure)
+    np.testing.assert_allclose(np.cos(fused[0, 2] - (np.pi - 0.01)), 1.0, atol=1e-12)
+    assert -np.pi <= fused[0, 2] < np.pi
 
 
 def test_match_request_spans_the_motion_model_round_the_prediction():

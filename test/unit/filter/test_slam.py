@@ -274,6 +274,7 @@ def test_paths_and_the_live_pose_take_the_matches_not_the_samples_round_them(roo
             self.matches.append(match)
             super()._sample_around(match)
 
+    Seen.matches = []
     slam = _tracking(Seen, particles=4, match_sigma_xy=0.03, match_sigma_theta=0.02, resample_threshold=0.0)
     _map_two_scans(slam, room_scan)
     pose = np.array([0.5, 0.0, 0.0])
@@ -284,6 +285,40 @@ def test_paths_and_the_live_pose_take_the_matches_not_the_samples_round_them(roo
         np.testing.assert_array_equal(slam.trajectory(i)[-1, 1:], match.poses[i])
     np.testing.assert_array_equal(slam.live_pose, match.poses[slam.best])
     assert np.abs(slam.poses[:, :2] - match.poses[:, :2]).max() > 0.01    # the particles: the samples
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1.0, 1000.0])
+def test_path_match_scale_fuses_each_path_with_its_match(room_scan, scale):
+    """path_match_scale: a path's next pose is its last one moved by the odometry, moved
+    towards the particle's match by the ICP's information times the scale (tiny: the
+    odometry; huge: the match); map->odom still takes the match."""
+    class Seen(FastSlam):
+        matches: list = []
+
+        def _sample_around(self, match):
+            self.matches.append(match)
+            super()._sample_around(match)
+
+    Seen.matches = []
+    slam = _tracking(Seen, particles=4, match_sigma_xy=0.03, match_sigma_theta=0.02, resample_threshold=0.0,
+                     path_match_scale=scale)
+    _map_two_scans(slam, room_scan)
+    before = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
+    pose = np.array([0.5, 0.0, 0.0])
+    assert slam.step(pose, room_scan(pose, ANGLES, 0.4)).processed
+    match = Seen.matches[-1]
+    assert match.trusted.all()
+    after = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
+    moved = compose(before, [0.5, 0.0, 0.0])                 # the odometry: 0.5 m straight on
+    assert np.abs(moved - match.poses)[:, :2].max() > 0.01     # the two differ
+    if scale == 1e-9:
+        np.testing.assert_allclose(after, moved, atol=1e-6)
+    elif scale == 1000.0:
+        np.testing.assert_allclose(after, match.poses, atol=1e-5)
+    else:
+        assert (np.abs(after - moved).max(axis=1) > 1e-4).all()
+        assert (np.abs(after - match.poses).max(axis=1) > 1e-4).all()
+    np.testing.assert_array_equal(slam.live_pose, match.poses[slam.best])
 
 
 @pytest.mark.parametrize("search", ["search", "refine"])

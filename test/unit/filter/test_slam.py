@@ -71,6 +71,18 @@ class _Recording(FastSlam):
         return resampled, parent
 
 
+class _SeesMatches(FastSlam):
+    """FastSlam that keeps every gated match its trusted particles were sampled round."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.matches = []
+
+    def _sample_around(self, match):
+        self.matches.append(match)
+        super()._sample_around(match)
+
+
 def test_the_medoid_particle_is_that_of_the_paths_through_resampling(loop, drifting, room_ranges):
     """best_particle medoid: the published particle minimises the sum of its path's
     distances to the others' (positions at every update, summed), each weighed by that
@@ -267,19 +279,11 @@ def _map_two_scans(slam: FastSlam, room_scan) -> None:
 def test_paths_and_the_live_pose_take_the_matches_not_the_samples_round_them(room_scan):
     """The samples drawn round each trusted match spread the particles (and their maps);
     the paths and map->odom keep the match itself: the sample's noise would add to them."""
-    class Seen(FastSlam):
-        matches: list = []
-
-        def _sample_around(self, match):
-            self.matches.append(match)
-            super()._sample_around(match)
-
-    Seen.matches = []
-    slam = _tracking(Seen, particles=4, match_sigma_xy=0.03, match_sigma_theta=0.02, resample_threshold=0.0)
+    slam = _tracking(_SeesMatches, particles=4, match_sigma_xy=0.03, match_sigma_theta=0.02, resample_threshold=0.0)
     _map_two_scans(slam, room_scan)
     pose = np.array([0.5, 0.0, 0.0])
     assert slam.step(pose, room_scan(pose, ANGLES, 0.4)).processed
-    match = Seen.matches[-1]
+    match = slam.matches[-1]
     assert match.trusted.all()
     for i in range(4):
         np.testing.assert_array_equal(slam.trajectory(i)[-1, 1:], match.poses[i])
@@ -292,21 +296,13 @@ def test_path_match_scale_fuses_each_path_with_its_match(room_scan, scale):
     """path_match_scale: a path's next pose is its last one moved by the odometry, moved
     towards the particle's match by the ICP's information times the scale (tiny: the
     odometry; huge: the match); map->odom still takes the match."""
-    class Seen(FastSlam):
-        matches: list = []
-
-        def _sample_around(self, match):
-            self.matches.append(match)
-            super()._sample_around(match)
-
-    Seen.matches = []
-    slam = _tracking(Seen, particles=4, match_sigma_xy=0.03, match_sigma_theta=0.02, resample_threshold=0.0,
+    slam = _tracking(_SeesMatches, particles=4, match_sigma_xy=0.03, match_sigma_theta=0.02, resample_threshold=0.0,
                      path_match_scale=scale)
     _map_two_scans(slam, room_scan)
     before = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
     pose = np.array([0.5, 0.0, 0.0])
     assert slam.step(pose, room_scan(pose, ANGLES, 0.4)).processed
-    match = Seen.matches[-1]
+    match = slam.matches[-1]
     assert match.trusted.all()
     after = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
     moved = compose(before, [0.5, 0.0, 0.0])                 # the odometry: 0.5 m straight on

@@ -14,8 +14,8 @@ trajectory_scans.txt, the same path at every scan the filter saw, the motion sin
 the last processed scan composed onto it in between (the odometry's, or with
 track_scans the scan matcher's against the best map); trajectory_smoothed.txt, the same
 with hindsight: between two processed scans, that motion bent to end on the particle's
-pose at the second, the gap spread by distance (the best offline estimate: relations
-and ATE); live_poses.txt, one pose per
+pose at the second, the gap spread by distance (hindsight a live run cannot have);
+live_poses.txt, one pose per
 scan as map->odom gave it during the run: the best particle at the last processed
 scan, moved since by that same motion (FastSlam.live_pose, as the node publishes it).
 The node's stream rules and bounds apply (fastslam.filter.frontend, filter.budget); a

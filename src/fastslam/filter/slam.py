@@ -103,8 +103,8 @@ class FastSlam:
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
         self._match: Match | None = None              # this update's gated match (match_weight)
-        # This update's poses for the paths and map->odom: the trusted matches themselves, not the
-        # samples drawn round them (those only spread the particles; their noise adds to the path).
+        # This update's poses for map->odom and (path_match_scale 0) the paths: the trusted matches
+        # themselves, not the samples drawn round them (those spread the particles; their noise adds to a path).
         self._centre: NDArray[np.float64] | None = None
         # path_match_scale: each path's last pose, moved by this update's odometry, and its next pose
         self._path_pose: NDArray[np.float64] | None = None

@@ -48,6 +48,12 @@ class History:
             self._prune()
 
     @property
+    def latest(self) -> NDArray[np.float64] | None:
+        """(N, 3) every slot's pose at the newest processed scan (None before the first);
+        pruning never compacts the newest step, so its rows are the slots."""
+        return self._poses[-1] if self._poses else None
+
+    @property
     def settled(self) -> int:
         """Rows every lineage shares (the trunk): the first rows of every path, which no
         later update changes (a caller may keep what it made of them)."""

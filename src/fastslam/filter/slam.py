@@ -106,8 +106,7 @@ class FastSlam:
         # This update's poses for map->odom and (path_match_scale 0) the paths: the trusted matches
         # themselves, not the samples drawn round them (those spread the particles; their noise adds to a path).
         self._centre: NDArray[np.float64] | None = None
-        # path_match_scale: each path's last pose, moved by this update's odometry, and its next pose
-        self._path_pose: NDArray[np.float64] | None = None
+        # path_match_scale: each path's last pose (history.latest) moved by this update's odometry, and its next pose
         self._path_predicted: NDArray[np.float64] | None = None
         self._path_next: NDArray[np.float64] | None = None
         self.live_pose = np.zeros(3)
@@ -156,8 +155,6 @@ class FastSlam:
             self.best = weighted_medoid(self._apart, normalise_log(self.path_log_w))
         centre, self._centre = (self.poses if self._centre is None else self._centre), None
         path, self._path_next = (centre if self._path_next is None else self._path_next), None
-        if self.cfg.path_match_scale > 0:
-            self._path_pose = path
         self.history.append(scan.stamp, path, parent)
         self.updates += 1
         self.live_pose = centre[self.best].copy()
@@ -194,8 +191,8 @@ class FastSlam:
             self._apply_motion(self._predicted, odom, noise=False)
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
-        if self._path_pose is not None:
-            self._path_predicted = self._path_pose.copy()
+        if cfg.path_match_scale > 0 and self.history.latest is not None:
+            self._path_predicted = self.history.latest.copy()
             self._apply_motion(self._path_predicted, odom, noise=False)
         self._apply_motion(self.poses, odom, noise=bool(cfg.toggle_noise))
 

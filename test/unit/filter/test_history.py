@@ -117,3 +117,13 @@ def test_a_path_from_a_row_on_and_the_settled_rows_never_change(monkeypatch):
     assert kept[-1][0] > 20                                       # pruning settled most of the path
     for settled, rows in kept:
         np.testing.assert_array_equal(h.path(4)[:settled], rows)  # settled rows are every lineage's, for good
+
+
+def test_latest_is_every_slots_newest_pose_through_pruning(monkeypatch):
+    monkeypatch.setattr(history_module, "PRUNE_EVERY", 4)
+    h = History()
+    assert h.latest is None
+    for k in range(6):     # pruned at the 4th step: the newest keeps its slots
+        h.append(float(k), poses_of_step(k, 4), np.zeros(4, dtype=np.intp))
+        np.testing.assert_array_equal(h.latest, poses_of_step(k, 4))
+        np.testing.assert_array_equal(h.latest, np.stack([h.path(j)[-1, 1:] for j in range(4)]))

@@ -140,8 +140,9 @@ class SlamConfig:
                                       "share of the particles found one (a few: an ambiguity, as along a "
                                       "corridor, not a place found again); 0 = any")
     path_match_scale: float = _num(0.0, 0.0, 1000.0, "published paths (scan_match): each particle's last path "
-                                   "pose moved by the odometry, corrected by its match with the ICP's information "
-                                   "scaled by this (ICP counts every end point as independent); 0 = the match as is")
+                                   "pose moved by the odometry (track_scans: the tracked motion), corrected by its "
+                                   "match with the ICP's information scaled by this (ICP counts every end point as "
+                                   "independent); 0 = the match as is")
     match_gate: float = _num(0.0, 0.0, 100.0, "distrust a match farther from the noise-free motion prediction than "
                              "this many std-devs of the motion model (match_prior: motion); 0 = off")
     track_scans: bool = field(default=False, metadata={

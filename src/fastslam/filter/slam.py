@@ -106,10 +106,12 @@ class FastSlam:
         # This update's poses for map->odom and (path_match_scale 0) the paths: the trusted matches
         # themselves, not the samples drawn round them (those spread the particles; their noise adds to a path).
         self._centre: NDArray[np.float64] | None = None
-        # path_match_scale: each path's last pose (history.latest) moved by this update's odometry, and its next pose
+        # path_match_scale: each path's last pose (history.latest) moved by the motion since the last update
+        # (the odometry's; track_scans: the live pose's, matched at the scans between), and its next pose
         self._path_predicted: NDArray[np.float64] | None = None
         self._path_next: NDArray[np.float64] | None = None
         self.live_pose = np.zeros(3)
+        self._live_at_update = np.zeros(3)                    # ... as the last update left it
         self._live_odom: NDArray[np.float64] | None = None    # odometry at that scan
         self._match_odom: NDArray[np.float64] | None = None   # ... at its last match
 
@@ -158,6 +160,7 @@ class FastSlam:
         self.history.append(scan.stamp, path, parent)
         self.updates += 1
         self.live_pose = centre[self.best].copy()
+        self._live_at_update = self.live_pose.copy()
         self._live_odom = self._match_odom = odom
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
@@ -192,9 +195,18 @@ class FastSlam:
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
         if cfg.path_match_scale > 0 and self.history.latest is not None:
-            self._path_predicted = self.history.latest.copy()
-            self._apply_motion(self._path_predicted, odom, noise=False)
+            if cfg.track_scans:   # the scans' motion since the last update: real odometry jitters by degrees
+                self._path_predicted = compose(self.history.latest, self._tracked_motion(odom))
+            else:
+                self._path_predicted = self.history.latest.copy()
+                self._apply_motion(self._path_predicted, odom, noise=False)
         self._apply_motion(self.poses, odom, noise=bool(cfg.toggle_noise))
+
+    def _tracked_motion(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(3,) the live pose's motion from the last update to this scan: matched at the
+        scans between (track_scans), the odometry's last step into this one."""
+        assert self._live_odom is not None
+        return relative(self._live_at_update, compose(self.live_pose, relative(self._live_odom, odom)))
 
     def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray[np.float64], noise: bool) -> None:
         """Moves poses (N, 3) in place by the configured motion model, sampled or not."""

@@ -317,6 +317,26 @@ def test_path_match_scale_fuses_each_path_with_its_match(room_scan, scale):
     np.testing.assert_array_equal(slam.live_pose, match.poses[slam.best])
 
 
+@pytest.mark.parametrize("track", [True, False])
+def test_path_match_scale_moves_the_paths_by_the_tracked_motion(room_scan, track):
+    """With track_scans a path's next pose starts from its last one moved by the live
+    pose's motion since the last update (matched at the scans between, the odometry's
+    last step into this one), not by the odometry's: real odometry jitters by degrees."""
+    slam = _tracking(particles=4, resample_threshold=0.0, path_match_scale=1e-9, track_scans=track,
+                     track_search="refine")
+    _map_two_scans(slam, room_scan)
+    before = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
+    # the odometry reads 4 cm too far at the scan between (tracked: 10 cm), then 40 cm more
+    assert not slam.step(np.array([0.14, 0.0, 0.0]), room_scan(np.array([0.1, 0.0, 0.0]), ANGLES, 0.4)).processed
+    assert slam.step(np.array([0.54, 0.0, 0.0]), room_scan(np.array([0.5, 0.0, 0.0]), ANGLES, 0.6)).processed
+    after = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
+    moved = relative(before, after)                           # each path's step (the same for all)
+    if track:
+        np.testing.assert_allclose(moved, np.tile([0.5, 0.0, 0.0], (4, 1)), atol=0.01)
+    else:
+        np.testing.assert_allclose(moved, np.tile([0.54, 0.0, 0.0], (4, 1)), atol=1e-6)
+
+
 @pytest.mark.parametrize("search", ["search", "refine"])
 def test_tracking_matches_the_scans_between_updates(room_scan, search):
     slam = _tracking(track_search=search)

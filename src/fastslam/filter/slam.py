@@ -205,8 +205,12 @@ class FastSlam:
     def _tracked_motion(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
         """(3,) the live pose's motion from the last update to this scan: matched at the
         scans between (track_scans), the odometry's last step into this one."""
+        return relative(self._live_at_update, self._live_moved(odom))
+
+    def _live_moved(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(3,) the live pose moved by the odometry since its last scan, to odometry pose odom."""
         assert self._live_odom is not None
-        return relative(self._live_at_update, compose(self.live_pose, relative(self._live_odom, odom)))
+        return compose(self.live_pose, relative(self._live_odom, odom))
 
     def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray[np.float64], noise: bool) -> None:
         """Moves poses (N, 3) in place by the configured motion model, sampled or not."""
@@ -223,8 +227,8 @@ class FastSlam:
         scan and (track_scans) matched against the best particle's map, round that
         prediction, held to the gate like a proposal; no map write, no weights."""
         cfg = self.cfg
-        assert self._live_odom is not None and self._match_odom is not None
-        predicted = compose(self.live_pose, relative(self._live_odom, odom))
+        assert self._match_odom is not None
+        predicted = self._live_moved(odom)
         self.live_pose, self._live_odom = predicted, odom
         if not cfg.track_scans:
             return

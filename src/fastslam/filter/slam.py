@@ -194,7 +194,8 @@ class FastSlam:
             self._apply_motion(self._predicted, odom, noise=False)
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
-        if cfg.path_match_scale > 0 and self.history.latest is not None:
+        self._path_predicted = None
+        if cfg.path_match_scale > 0 and cfg.proposal == "scan_match" and self.history.latest is not None:
             if cfg.track_scans:   # the scans' motion since the last update: real odometry jitters by degrees
                 self._path_predicted = compose(self.history.latest, self._tracked_motion(odom))
             else:
@@ -287,6 +288,8 @@ class FastSlam:
         if match.trusted.any():
             self._sample_around(match)
             self._match = match
+        else:   # nothing to correct them (path_match_scale): the paths follow their motion, not the noisy particles
+            self._path_next = self._path_predicted
         return int(match.trusted.sum())
 
     def _recover(self, beams: Beams) -> Match:
@@ -326,7 +329,7 @@ class FastSlam:
         self._centre = np.where(match.trusted[:, None], match.poses, self.poses)
         self._centre[:, 2] = wrap_angle(self._centre[:, 2])
         if self._path_predicted is not None and match.scan_information is not None:
-            # the path: its own last pose moved by the odometry, corrected by the match where the
+            # the path: its own last pose moved by its motion (_move), corrected by the match where the
             # scan pins the pose down (ICP's information scaled down: it counts every end point as independent)
             fused = fuse_with_motion(match.poses, self._path_predicted, motion_spread(cfg, self._motion_std),
                                      cfg.path_match_scale * match.scan_information)

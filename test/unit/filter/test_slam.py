@@ -2,6 +2,8 @@
 mode's gating, adaptive resampling and map growth, and random input."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -335,6 +337,23 @@ def test_path_match_scale_moves_the_paths_by_the_tracked_motion(room_scan, track
         np.testing.assert_allclose(moved, np.tile([0.5, 0.0, 0.0], (4, 1)), atol=0.01)
     else:
         np.testing.assert_allclose(moved, np.tile([0.54, 0.0, 0.0], (4, 1)), atol=1e-6)
+
+
+def test_path_match_scale_paths_follow_their_motion_when_no_match_is_trusted(room_scan):
+    """An update where no particle's match is trusted: each path takes its own last pose
+    moved by the odometry, not its particle's pose, which drew the motion model's noise."""
+    slam = _tracking(particles=4, resample_threshold=0.0, path_match_scale=0.03, toggle_noise=1,
+                     srr=0.2, srt=0.2, str=0.2, stt=0.2, match_recover=0)
+    _map_two_scans(slam, room_scan)
+    before = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
+    pose = np.array([0.5, 0.0, 0.0])
+    scan = room_scan(pose, ANGLES, 0.4)
+    blind = dataclasses.replace(scan, ranges=np.full_like(scan.ranges, np.inf))   # no return: nothing to match
+    info = slam.step(pose, blind)
+    assert info.processed and info.matched == 0
+    after = np.stack([slam.trajectory(i)[-1, 1:] for i in range(4)])
+    np.testing.assert_allclose(relative(before, after), np.tile([0.5, 0.0, 0.0], (4, 1)), atol=1e-9)
+    assert np.abs(relative(before, slam.poses) - [0.5, 0.0, 0.0]).max() > 0.01   # the particles: noisy
 
 
 @pytest.mark.parametrize("search", ["search", "refine"])

@@ -120,10 +120,11 @@ class OfflineResult:
         poses[done] = traj[k[done], 1:]          # exactly, not through a zero motion
         return np.concatenate([t[:, None], poses], axis=1)
 
-    def smoothed_trajectory(self) -> NDArray[np.float64]:
-        """(S, 4) scan_trajectory with hindsight: between two processed scans, the motion
-        since the first bent to end on the particle's pose at the second (filter.smooth)."""
-        rows, every = self._last_life(), self.scan_trajectory()
+    def smoothed_trajectory(self, every: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """(S, 4) scan_trajectory (every, if the caller has it) with hindsight: between two processed
+        scans, the motion since the first bent to end on the particle's pose at the second (filter.smooth)."""
+        rows = self._last_life()
+        every = self.scan_trajectory() if every is None else every
         if not len(rows):
             return every
         poses = spread_gaps(every[:, 1:], rows[:, 9] > 0, rows[:, 1:4])
@@ -215,7 +216,7 @@ def write_results(out: Path, result: OfflineResult, cfg: SlamConfig, fmt: str = 
     write_trajectory(out / "trajectory_scans.txt", every[:, 0], every[:, 1:], fmt=fmt,
                      comment="final best particle at every scan: its pose at the last processed scan "
                              f"composed with the motion since ({since})")
-    smooth = result.smoothed_trajectory()
+    smooth = result.smoothed_trajectory(every)
     write_trajectory(out / "trajectory_smoothed.txt", smooth[:, 0], smooth[:, 1:], fmt=fmt,
                      comment="trajectory_scans with hindsight: between two processed scans, the motion since "
                              "the first bent to end on the pose at the second")

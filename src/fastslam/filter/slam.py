@@ -41,6 +41,12 @@ TRIM_GROUPS = 4
 # again (odometry errs by millimetres over so short a move; the ACES bag at 5-10 Hz:
 # 9-15 % less CPU, its relations within 0.0002 m, docs/benchmarks.md round 9)
 TRACK_STILL = (0.05, 0.02)  # [m], [rad]
+# A stalled odometry: its pose unchanged since the last scan while the scan changed
+# (median range change over the returns of both). CSAIL's odometry repeats its pose for
+# four scans while the robot turns (median change 0.11-0.38 m); standing robots: 0.0-0.1.
+STALL_ODOM = 1e-6            # [m], [rad] "unchanged"
+STALL_RANGE_CHANGE = 0.1     # [m]
+STALL_STD = (0.05, 0.05, 0.15)   # [m], [m], [rad] the tracker's prior round the last pose in a stall
 
 
 @dataclass(frozen=True)
@@ -71,6 +77,7 @@ class FastSlam:
         self.limits = limits if limits is not None else Limits()
         self.refusals = 0  # growths refused (max_map_extent, memory), over every life
         self.recoveries = 0  # updates where the wider search (match_recover) found a trusted match
+        self.stalls = 0      # scans tracked with the odometry stalled (track_scans)
         self.reset()
 
     def reset(self) -> None:
@@ -114,12 +121,14 @@ class FastSlam:
         self._live_at_update = np.zeros(3)                    # ... as the last update left it
         self._live_odom: NDArray[np.float64] | None = None    # odometry at that scan
         self._match_odom: NDArray[np.float64] | None = None   # ... at its last match
+        self._last_scan: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # (odometry, ranges)
 
     def rebase_odometry(self, odom: NDArray[np.float64]) -> None:
         """Takes odom as the new reference without moving the particles (after a jump)."""
         if self._odom is not None:
             self._odom = np.asarray(odom, dtype=np.float64)
             self._live_odom = self._match_odom = self._odom
+            self._last_scan = None
 
     @property
     def weights(self) -> NDArray[np.float64]:
@@ -133,6 +142,7 @@ class FastSlam:
         start = time.perf_counter()
         if not first and not self.due(odom, scan.stamp):
             self._track(odom, scan)
+            self._last_scan = (odom, scan.ranges)
             return StepInfo(processed=False, neff=neff(self.weights), best=self.best,
                             seconds=time.perf_counter() - start)
         beams = select_beams(scan, self.cfg)
@@ -162,6 +172,7 @@ class FastSlam:
         self.live_pose = centre[self.best].copy()
         self._live_at_update = self.live_pose.copy()
         self._live_odom = self._match_odom = odom
+        self._last_scan = (odom, scan.ranges)
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
                         entropy=entropy(w), refused=refused)
@@ -226,19 +237,32 @@ class FastSlam:
     def _track(self, odom: NDArray[np.float64], scan: Scan) -> None:
         """A scan between updates: the live pose moved by the odometry since the last
         scan and (track_scans) matched against the best particle's map, round that
-        prediction, held to the gate like a proposal; no map write, no weights."""
+        prediction, held to the gate like a proposal; no map write, no weights.
+
+        A stalled odometry (_stalled) is matched round the last pose with STALL_STD; the
+        motion found is then taken as odometry the stall missed (the live pose's odometry
+        moves with it), so the odometry's catch-up step is not counted twice.
+        """
         cfg = self.cfg
-        assert self._match_odom is not None
-        predicted = self._live_moved(odom)
-        self.live_pose, self._live_odom = predicted, odom
+        assert self._match_odom is not None and self._live_odom is not None
+        stalled = cfg.track_scans and self._stalled(odom, scan)
+        if stalled:   # round the last pose, its odometry kept (it moves with the match below)
+            predicted = self.live_pose.copy()
+        else:
+            predicted = self._live_moved(odom)
+            self.live_pose, self._live_odom = predicted, odom
         if not cfg.track_scans:
             return
         moved = float(np.hypot(*(odom[:2] - self._match_odom[:2])))
-        if moved < TRACK_STILL[0] and abs(float(wrap_angle(odom[2] - self._match_odom[2]))) < TRACK_STILL[1]:
+        if not stalled and moved < TRACK_STILL[0] and \
+                abs(float(wrap_angle(odom[2] - self._match_odom[2]))) < TRACK_STILL[1]:
             return  # (nearly) standing: the last match, moved by the odometry, holds
-        std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
-               else odometry_std(self._match_odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
-        self._match_odom = odom
+        if stalled:
+            std = np.array(STALL_STD)
+        else:
+            std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
+                   else odometry_std(self._match_odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
+            self._match_odom = odom
         one = predicted[None, :]
         start, params, prior = match_request(cfg, self._track_params, one, one, std)
         grid, beams = self.grid.view(self.best), select_beams(scan, cfg)
@@ -247,6 +271,20 @@ class FastSlam:
         match = gate_match(cfg, found, one, std)
         if match.trusted[0]:
             self.live_pose = match.poses[0]
+            if stalled:
+                self.stalls += 1
+                self._live_odom = self._match_odom = compose(self._live_odom, relative(predicted, self.live_pose))
+
+    def _stalled(self, odom: NDArray[np.float64], scan: Scan) -> bool:
+        """Whether the odometry is unchanged since the last scan while the scan changed."""
+        if self._last_scan is None:
+            return False
+        last_odom, last_ranges = self._last_scan
+        if len(last_ranges) != len(scan.ranges) or np.any(np.abs(odom - last_odom) > STALL_ODOM):
+            return False
+        both = ((scan.ranges > scan.range_min) & (scan.ranges < scan.range_max)
+                & (last_ranges > scan.range_min) & (last_ranges < scan.range_max))
+        return bool(both.any() and np.median(np.abs(scan.ranges[both] - last_ranges[both])) > STALL_RANGE_CHANGE)
 
     def _cover_beams(self) -> tuple[bool, bool, str]:
         """Grows the maps so every particle's beams stay inside, within the limits (by

@@ -390,6 +390,34 @@ def test_tracking_skips_scans_after_less_motion_than_track_still(room_scan):
     assert abs(relative(start, slam.live_pose)[0] - 0.1) < 0.01
 
 
+def test_tracking_follows_the_scans_while_the_odometry_stalls(room_scan):
+    """CSAIL's odometry repeats its pose for scans while the robot turns: the tracker
+    matches those scans round the last pose, and the odometry's catch-up step afterwards
+    is not counted a second time."""
+    from fastslam.filter.slam import STALL_RANGE_CHANGE
+
+    slam = _tracking(track_search="refine")
+    _map_two_scans(slam, room_scan)
+    start = slam.live_pose.copy()
+    # standing: odometry and scan unchanged, no stall, nothing moves
+    slam.step(np.zeros(3), room_scan(np.zeros(3), ANGLES, 0.3))
+    assert slam.stalls == 0
+    np.testing.assert_allclose(slam.live_pose, start, atol=1e-12)
+    # turning 0.2 rad a scan while the odometry stays at 0
+    for i, heading in enumerate((0.2, 0.4)):
+        scan = room_scan(np.array([0.0, 0.0, heading]), ANGLES, 0.4 + 0.1 * i)
+        last = room_scan(np.array([0.0, 0.0, heading - 0.2]), ANGLES)
+        assert np.median(np.abs(scan.ranges - last.ranges)) > STALL_RANGE_CHANGE
+        assert not slam.step(np.zeros(3), scan).processed
+        assert abs(relative(start, slam.live_pose)[2] - heading) < 0.01
+    assert slam.stalls == 2
+    # the odometry catches up (0.45 rad, under angular_update) at a scan with no return: the live
+    # pose is the prediction, the odometry's turn since the stall's start (counted twice: 0.85)
+    blind = Scan(ranges=np.full(360, np.inf), angles=ANGLES, range_min=0.12, range_max=3.5, stamp=0.7)
+    assert not slam.step(np.array([0.0, 0.0, 0.45]), blind).processed
+    np.testing.assert_allclose(slam.live_pose, compose(start, [0.0, 0.0, 0.45]), atol=1e-9)
+
+
 @pytest.mark.parametrize("search", ["search", "refine"])
 def test_tracking_with_the_window_prior_matches_too(room_scan, search):
     # match_prior: window (the defaults' and burger's): a prior of half the search window round

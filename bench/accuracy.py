@@ -91,6 +91,10 @@ def converted(log: str, seed: int, level: float = 1.0) -> Path:
         done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
         if done.returncode != 0:
             raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip()}")
+        # the same case from an older converter is never read again: 3-6 MB a bag
+        for old in CACHE.glob(f"{log}-noise{level:g}-seed{seed}-*.bag*"):
+            if not old.name.startswith(bag.name):
+                old.unlink(missing_ok=True)
     return bag
 
 

@@ -1,0 +1,26 @@
+"""The accuracy bench's cache of converted corrected logs (bench.accuracy.converted)."""
+from __future__ import annotations
+
+import pytest
+
+from bench import accuracy
+
+
+@pytest.fixture(autouse=True)
+def seattle_log(dev_data):
+    dev_data("seattle-corrected.log.gz")
+
+
+def test_a_new_conversion_removes_the_same_case_made_by_an_older_converter(tmp_path, monkeypatch):
+    monkeypatch.setattr(accuracy, "CACHE", tmp_path)
+    stale = [tmp_path / f"seattle-noise1-seed0-0123456789.bag{ext}" for ext in ("", ".gt.txt", ".odom.txt")]
+    other_seed = tmp_path / "seattle-noise1-seed1-0123456789.bag"
+    other_log = tmp_path / "intel-noise1-seed0-0123456789.bag"
+    for f in stale + [other_seed, other_log]:
+        f.write_text("old")
+    bag = accuracy.converted("seattle", 0)
+    assert bag.exists() and bag.with_name(bag.name + ".gt.txt").exists()
+    assert not any(f.exists() for f in stale)
+    assert other_seed.exists() and other_log.exists()          # other cases stay
+    made = bag.stat().st_mtime_ns
+    assert accuracy.converted("seattle", 0) == bag and bag.stat().st_mtime_ns == made   # reused, not made again

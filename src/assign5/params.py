@@ -19,6 +19,7 @@ from fastslam.fields import num as _num
 from fastslam.filter.budget import MAX_BEAMS, MAX_MAP_EXTENT, Limits, startup_problem
 
 T = TypeVar("T")
+OPTIONAL_STRINGS = ("base_frame",)   # empty: taken from the input (see the field's doc)
 
 
 @dataclass(frozen=True)
@@ -29,7 +30,9 @@ class NodeConfig:
     odom_topic: str = field(default="odom", metadata={"doc": "nav_msgs/Odometry input"})
     map_frame: str = field(default="map", metadata={"doc": "frame of the map and particles"})
     odom_frame: str = field(default="odom", metadata={"doc": "odometry frame; map->odom is published"})
-    base_frame: str = field(default="base_footprint", metadata={"doc": "robot frame the odometry moves"})
+    base_frame: str = field(default="", metadata={
+        "doc": "robot frame the odometry moves, on which tf gives the laser's mount; empty: the odometry's "
+               "child_frame_id (base_link if it names none), as the offline tool reads a bag"})
     map_update_interval: float = _num(2.0, 0.0, 3600.0, "seconds (of scan time) between map publications")
     transform_publish_period: float = _num(0.05, 0.0, 10.0, "map->odom broadcast period; 0 = never [s]")
     tf_delay: float = _num(0.05, 0.0, 10.0, "map->odom is stamped this far ahead, as gmapping does [s]")
@@ -58,7 +61,7 @@ class NodeConfig:
     def __post_init__(self) -> None:
         check_fields(self)
         for f in dataclasses.fields(self):
-            if f.type == "str" and not getattr(self, f.name):
+            if f.type == "str" and not getattr(self, f.name) and f.name not in OPTIONAL_STRINGS:
                 raise ConfigError(f"{f.name}='' must be a non-empty string")
 
 

@@ -58,6 +58,7 @@ class SlamNode:
         self.last_tf_time = rospy.Time(0)
         self.last_clock: float | None = None
         self.warned_clip = False
+        self.warned_odom_frame = False
         self.fatal: str | None = None
         self.counts = Counts()
         # before the subscribers: a scan may publish, save or reset at once
@@ -100,12 +101,26 @@ class SlamNode:
     def on_odom(self, msg: Odometry) -> None:
         try:
             pose = convert.odom_pose(msg)
+            self._check_frames(msg)
             with self.lock:
                 self.front.add_odom(msg.header.stamp.to_sec(), pose)
                 self._log_events()
                 self.odom_arrived.notify_all()
         except Dropped as err:  # convert's BadMessage is Dropped too
             self.counts.drop(str(err))  # "odometry with NaN or inf", "... an all-zero quaternion": kinds apart
+
+    def _check_frames(self, msg: Odometry) -> None:
+        """The odometry's frames against the node's: its child frame is the base (unless
+        base_frame is set); map->odom is published to odom_frame, which should be its parent."""
+        warning = self.mounts.odometry_frame(msg.child_frame_id)
+        if warning:
+            rospy.logwarn(warning)
+        parent = msg.header.frame_id.lstrip("/")
+        if parent and parent != self.cfg.odom_frame.lstrip("/") and not self.warned_odom_frame:
+            self.warned_odom_frame = True
+            rospy.logwarn(f"the odometry is in '{parent}' but map->odom is published to odom_frame "
+                          f"'{self.cfg.odom_frame}': the map does not join the robot's tf tree; set "
+                          f"odom_frame:={parent} (warned once)")
 
     def on_clock(self, msg: Clock) -> None:
         t = msg.clock.to_sec()

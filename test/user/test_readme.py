@@ -32,6 +32,8 @@ COMMANDS = {
     "cd ~/.ros && roslaunch assign5 replay.launch": "test_record_replay_and_the_offline_tools",
     "roslaunch assign5 slam.launch use_sim_time:=true": "test_record_replay_and_the_offline_tools",
     "rosbag play --clock ~/.ros/assign5_DATE.bag": "test_record_replay_and_the_offline_tools",
+    "roslaunch assign5 slam.launch use_sim_time:=true config:=real": "test_a_real_robots_bag_live",
+    "rosbag play --clock ../shared/data/mit-csail.bag": "test_a_real_robots_bag_live",
     "PYTHONPATH=src .venv/bin/python -m fastslam.offline ~/.ros/": "test_record_replay_and_the_offline_tools",
     "PYTHONPATH=src .venv/bin/python -m fastslam.carmen_to_bag": "test_record_replay_and_the_offline_tools",
     "PYTHONPATH=src .venv/bin/python -m fastslam.offline intel.bag": "test_record_replay_and_the_offline_tools",
@@ -271,6 +273,22 @@ def test_the_relations_metric(machine: Any, readme: SimpleNamespace) -> None:
     translation = re.search(r"translation \[m\]\s+([\d.]+)", res.stdout)
     assert relations and int(relations.group(1)) > 1000, res.stdout
     assert translation and float(translation.group(1)) < 0.2, res.stdout
+
+
+def test_a_real_robots_bag_live(user: Any, readme: SimpleNamespace) -> None:
+    # the bag's frames are base_link and laser, not a TurtleBot3's: nothing set by hand
+    slam = user.start(run_line(readme, "roslaunch assign5 slam.launch use_sim_time:=true config:=real"),
+                      cwd=user.clone)
+    user.probe("param", "/slam/particles")           # the node's launch is up
+    play = user.start(run_line(readme, "rosbag play --clock ../shared/data/mit-csail.bag") + " -u 40",
+                      cwd=user.clone)
+    assert play.wait(300) == 0, play.output()[-2000:]
+    grid = user.probe("message", "/map", "nav_msgs/OccupancyGrid", "60")
+    assert grid.get("known", 0) > 5000, (grid, slam.output()[-2000:])
+    assert "laser 'laser' on 'base_link'" in slam.output(), slam.output()[-2000:]
+    assert "dropping message" not in slam.output(), slam.output()[-2000:]
+    assert slam.interrupt() == 0
+    readme.clean(slam.output(), "roslaunch assign5 slam.launch use_sim_time:=true config:=real")
 
 
 def test_files_in_tum_format(machine: Any, readme: SimpleNamespace) -> None:

@@ -207,7 +207,7 @@ def _collect(messages: Iterable[Message], choose_result: list[str]
     scans.sort(key=lambda s: s.t)
     odoms.sort(key=lambda o: o.t)
     reference.sort(key=lambda o: o.t)
-    base = odoms[0].child_frame_id if odoms else "base_link"
+    base = (odoms[0].child_frame_id if odoms else "") or "base_link"   # as the node: REP 105's robot frame
     laser = scans[0].frame_id if scans else "laser"
     odom_frame = odoms[0].frame_id if odoms else "odom"
     # the odometry edge itself is dynamic and must not be part of the mounting chain

@@ -48,7 +48,7 @@ if [ "$what" = all ] || [ "$what" = pytest ]; then
     # These test modules import rospy (through the module they test): not even collected there.
     .venv38/bin/python -m pytest -p no:cacheprovider -m "not ros" \
       --ignore-glob='*/test_convert.py' --ignore-glob='*/test_run_report.py' --ignore-glob='*/test_sim_node.py' \
-      --ignore-glob='*/test_packed.py' \
+      --ignore-glob='*/test_packed.py' --ignore-glob='*/test_mounts.py' \
       --junitxml="$outdir/pytest-py38.xml" "$@"
     count_junit $? "$outdir/pytest-py38.xml"
   else

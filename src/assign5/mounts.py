@@ -7,10 +7,11 @@ import numpy as np
 import rospy
 import tf2_ros
 
+from fastslam.io.bag_reader import DEFAULT_BASE_FRAME
+
 from . import convert
 from .convert import BadMessage
 
-DEFAULT_BASE = "base_link"   # REP 105's robot frame, for odometry that names no child frame
 MOUNT_RETRY = 1.0    # [s] a laser frame not found in tf is looked up again at most this often
 FAILED_FRAMES = 256  # unknown frames remembered (a flood of made-up names must not grow memory)
 
@@ -38,12 +39,12 @@ class LaserMounts:
         time it differs from the base frame (set by hand, or the first odometry's)."""
         child = child.lstrip("/")   # tf1-era bags: tf2 takes no leading slash
         if not self.odometry_child:
-            self.odometry_child = child or DEFAULT_BASE
+            self.odometry_child = child or DEFAULT_BASE_FRAME
             if not self.configured:
                 self.base_frame = self.odometry_child
                 return None
         base = self.base_frame
-        if (child or DEFAULT_BASE) == base or self.warned_frame:
+        if (child or DEFAULT_BASE_FRAME) == base or self.warned_frame:
             return None
         self.warned_frame = True
         return (f"the odometry moves '{child}' while the laser's mount is read on '{base}'"

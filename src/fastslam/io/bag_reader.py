@@ -33,6 +33,7 @@ ODOM_TYPE = "nav_msgs/msg/Odometry"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 REFERENCE_TOPIC = "/ground_truth"   # the simulator's true pose (nav_msgs/Odometry), recorded by burger.launch
 READERS = ("rosbags", "rosbag")
+DEFAULT_BASE_FRAME = "base_link"   # REP 105's robot frame: odometry naming no child frame moves it
 Message = Tuple[str, str, Any]      # topic, type (rosbags' spelling: pkg/msg/Name), message
 
 
@@ -207,7 +208,7 @@ def _collect(messages: Iterable[Message], choose_result: list[str]
     scans.sort(key=lambda s: s.t)
     odoms.sort(key=lambda o: o.t)
     reference.sort(key=lambda o: o.t)
-    base = (odoms[0].child_frame_id if odoms else "") or "base_link"   # as the node: REP 105's robot frame
+    base = (odoms[0].child_frame_id if odoms else "") or DEFAULT_BASE_FRAME   # the frame the odometry moves
     laser = scans[0].frame_id if scans else "laser"
     odom_frame = odoms[0].frame_id if odoms else "odom"
     # the odometry edge itself is dynamic and must not be part of the mounting chain

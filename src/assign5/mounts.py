@@ -37,17 +37,14 @@ class LaserMounts:
     def odometry_frame(self, child: str) -> str | None:
         """Takes note of an odometry message's child_frame_id; returns a warning the first
         time it differs from the base frame (set by hand, or the first odometry's)."""
-        child = child.lstrip("/")   # tf1-era bags: tf2 takes no leading slash
+        child = child.lstrip("/") or DEFAULT_BASE_FRAME   # tf1-era bags: tf2 takes no leading slash
         if not self.odometry_child:
-            self.odometry_child = child or DEFAULT_BASE_FRAME
-            if not self.configured:
-                self.base_frame = self.odometry_child
-                return None
-        base = self.base_frame
-        if (child or DEFAULT_BASE_FRAME) == base or self.warned_frame:
+            self.odometry_child = child
+            self.base_frame = self.configured or child
+        if child == self.base_frame or self.warned_frame:
             return None
         self.warned_frame = True
-        return (f"the odometry moves '{child}' while the laser's mount is read on '{base}'"
+        return (f"the odometry moves '{child}' while the laser's mount is read on '{self.base_frame}'"
                 + (" (base_frame)" if self.configured else " (the first odometry's frame)")
                 + ": if the two differ by more than a height, set base_frame to the odometry's frame (warned once)")
 

@@ -81,7 +81,9 @@ if [ "$what" = all ] || [ "$what" = rostest ]; then
     n=${n:-0}; e=${e:-0}; fl=${fl:-0}
     grep -q 'RESULT: SUCCESS' "$outdir/$name.log" || rc=${rc/#0/1}
     if [ $rc -ne 0 ] || [ "$n" = 0 ]; then
-      echo "FAILED rostest $name (exit $rc), last lines of $outdir/$name.log:"; tail -40 "$outdir/$name.log"
+      echo "FAILED rostest $name (exit $rc); what failed, then the last lines of $outdir/$name.log:"
+      grep -A40 -E '^(FAIL|ERROR): ' "$outdir/$name.log" | grep -v 'TF_REPEATED_DATA\|buffer_core.cpp' | head -80
+      tail -40 "$outdir/$name.log"
       failed=$((failed + (e + fl > 0 ? e + fl : 1))); passed=$((passed + (n - e - fl > 0 ? n - e - fl : 0)))
     else
       echo "ok: $n tests"; passed=$((passed + n))

@@ -43,7 +43,10 @@ class SimClock:
 
     def _run(self):
         while not rospy.is_shutdown():
-            self.pub.publish(Clock(self.now()))
+            try:
+                self.pub.publish(Clock(self.now()))
+            except rospy.ROSException:      # closed by the shutdown under way
+                return
             time.sleep(0.005)
 
 
@@ -66,7 +69,7 @@ def ring(n=360):
 def own_names(name):
     """A second slam.py named name, its map, service and tf apart from the one under test."""
     return [f"__name:={name}", f"map:={name}/map", f"map_metadata:={name}/map_metadata",
-            f"particles:={name}/particles", f"dynamic_map:={name}/dynamic_map"]
+            f"particles:={name}/particles", f"dynamic_map:={name}/dynamic_map", f"/tf:=/{name}/tf"]
 
 
 class ClockedCase(unittest.TestCase):

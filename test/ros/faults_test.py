@@ -26,6 +26,20 @@ from std_srvs.srv import Trigger
 from fastslam.io.map_files import load_map
 
 
+def logged_popen(args):
+    """A node whose output goes to a file, not a pipe: a pipe nobody reads until the end fills
+    (64 KB) and blocks the node's next log line; output(proc) reads the file."""
+    log = tempfile.TemporaryFile("w+")
+    proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, text=True)
+    proc.log = log
+    return proc
+
+
+def output(proc):
+    proc.log.seek(0)
+    return proc.log.read()
+
+
 def forget(namespace):
     """Removes a spawned node's parameters (none if it never started)."""
     if rospy.has_param(namespace):
@@ -165,14 +179,14 @@ class Faults(ClockedCase):
                   "slam.FastSlam.step = step\n"
                   "sys.argv = sys.argv[1:]\n"
                   "runpy.run_path(sys.argv[0], run_name='__main__')\n")
-        proc = subprocess.Popen(["python3", "-c", inject, os.path.join(PKG, "src", "slam.py"), *own_names("fatal_slam"),
-                                 "_particles:=2", f"_map_file:={stem}"],
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        proc = logged_popen(["python3", "-c", inject, os.path.join(PKG, "src", "slam.py"), *own_names("fatal_slam"),
+                             "_particles:=2", f"_map_file:={stem}"])
         try:
             deadline = time.monotonic() + 60
             while proc.poll() is None and time.monotonic() < deadline:
                 self.step(timeout=0.5)
-            out = proc.communicate(timeout=30)[0]
+            proc.wait(timeout=30)
+            out = output(proc)
         finally:
             if proc.poll() is None:
                 proc.kill()
@@ -244,14 +258,13 @@ class Faults(ClockedCase):
 
     # -- item 12: saves --------------------------------------------------------------
     def spawn(self, name, *params):
-        return subprocess.Popen(["rosrun", "assign5", "slam.py", *own_names(name), "_particles:=2", *params],
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        return logged_popen(["rosrun", "assign5", "slam.py", *own_names(name), "_particles:=2", *params])
 
     def stop(self, proc, name):
         proc.terminate()
-        out = proc.communicate(timeout=30)[0]
+        proc.wait(timeout=30)
         forget(f"/{name}")
-        return out
+        return output(proc)
 
     def wait_until_updates(self, name, timeout=30):
         got = threading.Event()

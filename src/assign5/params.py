@@ -17,6 +17,7 @@ from fastslam.config import SlamConfig, translate_gmapping
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
 from fastslam.filter.budget import MAX_BEAMS, MAX_MAP_EXTENT, Limits, startup_problem
+from fastslam.io.bag_reader import ODOM_WAIT
 
 T = TypeVar("T")
 OPTIONAL_STRINGS = ("base_frame",)   # empty: taken from the input (see the field's doc)
@@ -41,7 +42,8 @@ class NodeConfig:
         "doc": "~save_map writes <map_file>.pgm/.yaml; a relative path is under $ROS_HOME (default ~/.ros)"})
     save_on_exit: bool = field(default=True, metadata={"doc": "save the map on shutdown (once something is mapped)"})
     odom_timeout: float = _num(0.5, 0.0, 60.0, "a scan this much newer than the latest odometry waits/drops [s]")
-    odom_wait: float = _num(0.1, 0.0, 5.0, "wall time a scan waits for odometry at its stamp [s]")
+    odom_wait: float = _num(ODOM_WAIT, 0.0, 5.0, "wall time a scan waits for odometry stamped at or after it, to "
+                            "interpolate the odometry at its stamp (the offline tool: the same in bag time) [s]")
     odom_buffer: float = _num(10.0, 0.5, 600.0, "seconds of odometry kept for interpolation [s]")
     max_odom_speed: float = _num(5.0, 0.01, 1000.0, "odometry stepping faster than this between two messages is "
                                  "out of step: counted, kept, merged with the previous one [m/s]")

@@ -188,8 +188,9 @@ class SlamNode:
         return self.slam.poses.copy(), self.slam.mean_pose(), self.slam.covariance()
 
     def _wait_for_odom(self, stamp: float) -> None:
-        """Gives odometry published with the scan a moment to arrive, so the scan is
-        matched with odometry at its own stamp, as the offline runner does."""
+        """Gives odometry published with or after the scan a moment to arrive, so the
+        odometry is interpolated at the scan's stamp; the offline runner hands the scan
+        over in the same place of the stream (BagData.records)."""
         def arrived() -> bool:
             latest = self.front.odom.latest
             return latest is not None and latest[0] >= stamp

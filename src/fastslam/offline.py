@@ -53,7 +53,7 @@ from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.slam import FastSlam
 from fastslam.filter.smooth import spread_gaps
 from fastslam.geometry import compose, relative
-from fastslam.io.bag_reader import REFERENCE_TOPIC, BagData, read_bag
+from fastslam.io.bag_reader import ODOM_WAIT, REFERENCE_TOPIC, BagData, read_bag
 from fastslam.io.map_files import save_map
 from fastslam.io.records import BagError, OdomRecord, ScanRecord
 from fastslam.io.staging import staged_folder
@@ -158,7 +158,7 @@ def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False, limits: L
     start = time.perf_counter()
     bar = tqdm(total=len(data.scans), unit="scan", disable=not progress, file=sys.stderr, dynamic_ncols=True,
                mininterval=0.5)
-    for rec in data.records():
+    for rec in data.records(ODOM_WAIT):   # as the node, played at the bag's speed, handles them
         try:
             if isinstance(rec, OdomRecord):
                 front.add_odom(rec.t, np.array([rec.x, rec.y, rec.yaw]))

@@ -33,6 +33,7 @@ ODOM_TYPE = "nav_msgs/msg/Odometry"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 REFERENCE_TOPIC = "/ground_truth"   # the simulator's true pose (nav_msgs/Odometry), recorded by burger.launch
 READERS = ("rosbags", "rosbag")
+ODOM_WAIT = 0.1   # [s] the node's default odom_wait: how long a scan waits for odometry stamped at or after it
 DEFAULT_BASE_FRAME = "base_link"   # REP 105's robot frame: odometry naming no child frame moves it
 Message = Tuple[str, str, Any]      # topic, type (rosbags' spelling: pkg/msg/Name), message
 
@@ -51,17 +52,37 @@ class BagData:
     reader: str = ""                                         # the library that read it (READERS)
     bad_tf: list[tuple[str, str]] = field(default_factory=list)  # (parent, child) seen only with a zero quaternion
 
-    def records(self) -> Iterator[ScanRecord | OdomRecord]:
-        """Scans and odometry merged in time order; odometry first on equal stamps,
-        so a scan always sees the odometry of its own instant."""
+    def records(self, odom_wait: float = 0.0) -> Iterator[ScanRecord | OdomRecord]:
+        """Scans and odometry in the order the node handles them, played at their own speed.
+
+        Merged in time order, odometry first on equal stamps. With odom_wait > 0, a scan
+        comes after the first odometry stamped at or after it, if that is stamped at
+        most odom_wait after it: the node waits up to odom_wait for it, then takes the
+        odometry at the scan's stamp between the poses on either side.
+        """
+        pending: deque[ScanRecord] = deque()   # scans waiting for odometry stamped at or after them
+        newest = -np.inf                       # stamp of the newest odometry so far
         i = j = 0
         while i < len(self.scans) or j < len(self.odoms):
             if j < len(self.odoms) and (i >= len(self.scans) or self.odoms[j].t <= self.scans[i].t):
-                yield self.odoms[j]
+                odom = self.odoms[j]
                 j += 1
+                newest = max(newest, odom.t)
+                while pending and pending[0].t + odom_wait < odom.t:   # waited in vain
+                    yield pending.popleft()
+                yield odom
+                while pending and pending[0].t <= odom.t:
+                    yield pending.popleft()
             else:
-                yield self.scans[i]
+                scan = self.scans[i]
                 i += 1
+                while pending and pending[0].t + odom_wait < scan.t:
+                    yield pending.popleft()
+                if odom_wait > 0 and newest < scan.t:
+                    pending.append(scan)
+                else:
+                    yield scan
+        yield from pending
 
     def odom_poses(self) -> NDArray[np.float64]:
         """(T, 4) float64 rows (t, x, y, yaw)."""

@@ -82,3 +82,20 @@ def test_records_merge_in_time_order_odometry_first():
     np.testing.assert_allclose(data.odom_poses(), [[0.5, 1.0, 0.0, 0.1], [1.0, 2.0, 0.0, 0.2], [3.0, 3.0, 0.0, 0.3]])
     empty = BagData(scans=[], odoms=[], mount=LaserMount(), scan_topic="/scan", odom_topic="/odom")
     assert list(empty.records()) == [] and empty.odom_poses().shape == (0, 4)
+
+
+def test_records_in_the_order_the_node_handles_them():
+    # the node waits up to odom_wait for odometry stamped at or after a scan
+    scans = [ScanRecord(t, np.ones(3, np.float32), 0.0, 0.1, 0.1, 5.0)
+             for t in (1.0, 1.2, 2.0, 3.0, 3.05, 5.0, 5.5, 6.0)]
+    odoms = [OdomRecord(t, 0.0, 0.0, 0.0) for t in (0.9, 1.05, 1.25, 1.5, 2.2, 3.08, 5.0, 5.3, 5.5, 5.55)]
+    data = BagData(scans=scans, odoms=odoms, mount=LaserMount(), scan_topic="/scan", odom_topic="/odom")
+    order = [(type(r).__name__[0], r.t) for r in data.records(0.1)]
+    assert order == [("O", 0.9), ("O", 1.05), ("S", 1.0), ("O", 1.25), ("S", 1.2), ("O", 1.5),
+                     ("S", 2.0), ("O", 2.2),                # the next odometry came 0.2 s later: not waited for
+                     ("O", 3.08), ("S", 3.0), ("S", 3.05),  # two scans waiting for one message
+                     ("O", 5.0), ("S", 5.0), ("O", 5.3),    # odometry of its own stamp: not waiting
+                     ("O", 5.5), ("S", 5.5), ("O", 5.55),   # for the next, however soon
+                     ("S", 6.0)]                            # the end of the bag
+    assert [(type(r).__name__[0], r.t) for r in data.records()][:4] == [("O", 0.9), ("S", 1.0), ("O", 1.05),
+                                                                       ("S", 1.2)]

@@ -19,6 +19,7 @@ from fastslam.filter.frontend import Dropped, Frontend
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam, StepInfo
 from fastslam.geometry import relative
+from fastslam.io.bag_reader import ODOM_WAIT
 from fastslam.io.records import OdomRecord, ScanRecord
 from fastslam.sim.route import load_route
 from fastslam.sim.sim import SimConfig, Simulation
@@ -89,8 +90,30 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | NDArray[np.float64] | 
     truth, odom, scans, odoms = [], [], [], []
     spent, updates, dropped = 0.0, 0, 0
     angle_min, increment = float(lidar.angles[0]), float(lidar.angles[1] - lidar.angles[0])
+    # Scans wait for the odometry of their instant, or the next within ODOM_WAIT, as in
+    # the node and the offline tool (BagData.records): with rates that are not multiples
+    # of each other, the odometry is interpolated at the scan's stamp.
+    waiting: list[Scan] = []
+
+    def handle(scan: Scan) -> None:
+        nonlocal spent, updates, dropped
+        start = time.perf_counter()
+        info: StepInfo | None = None
+        try:
+            info = front.add_scan(scan)
+        except Dropped:
+            dropped += 1
+        spent += time.perf_counter() - start
+        front.events.clear()  # the simulator's streams are clean: nothing to report
+        if info is not None and info.processed:
+            updates += 1
+            if on_update is not None:
+                on_update(simulation, slam, info)
+
     while simulation.time < max_time:
         tick = simulation.step()
+        while waiting and waiting[0].stamp + ODOM_WAIT < tick.t:   # waited in vain
+            handle(waiting.pop(0))
         if tick.odom_due:
             truth.append((tick.t, *relative(w.spawn, simulation.robot.pose)))
             odom.append((tick.t, *simulation.odom.pose))
@@ -98,6 +121,8 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | NDArray[np.float64] | 
             if record:
                 x, y, yaw = simulation.odom.pose
                 odoms.append(OdomRecord(tick.t, x, y, yaw, child_frame_id="base_footprint"))
+            while waiting:
+                handle(waiting.pop(0))
         if tick.scan is not None:
             ranges = tick.scan.astype(np.float32)  # as a LaserScan message carries them
             if record:
@@ -105,19 +130,13 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | NDArray[np.float64] | 
                                         sim_cfg.range_max, frame_id="base_scan"))
             scan = Scan.from_laser(ranges, angle_min, increment, sim_cfg.range_min, sim_cfg.range_max,
                                    mount=mount, stamp=tick.t)
-            start = time.perf_counter()
-            info: StepInfo | None = None
-            try:
-                info = front.add_scan(scan)
-            except Dropped:
-                dropped += 1
-            spent += time.perf_counter() - start
-            front.events.clear()  # the simulator's streams are clean: nothing to report
-            if info is not None and info.processed:
-                updates += 1
-                if on_update is not None:
-                    on_update(simulation, slam, info)
+            if tick.odom_due:
+                handle(scan)
+            else:
+                waiting.append(scan)
         if tick.route_finished:
             break
+    for scan in waiting:
+        handle(scan)
     return SimRun(slam=slam, world=w, truth=np.array(truth), odom=np.array(odom), seconds=spent,
                   updates=updates, dropped=dropped, mount=mount, scans=scans, odoms=odoms)

@@ -17,7 +17,7 @@ from fastslam.config import SlamConfig, translate_gmapping
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
 from fastslam.filter.budget import MAX_BEAMS, MAX_MAP_EXTENT, Limits, startup_problem
-from fastslam.io.bag_reader import ODOM_WAIT
+from fastslam.filter.scan_wait import ODOM_WAIT
 
 T = TypeVar("T")
 OPTIONAL_STRINGS = ("base_frame",)   # empty: taken from the input (see the field's doc)

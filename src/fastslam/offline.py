@@ -50,10 +50,11 @@ from fastslam.eval.trajectory import align_2d, apply_alignment, match_by_time, s
 from fastslam.filter.budget import AUTO_SHARE, Limits, startup_problem
 from fastslam.filter.frontend import Dropped, Frontend, Reset, drop_key
 from fastslam.filter.scan import Scan, laser_problem
+from fastslam.filter.scan_wait import ODOM_WAIT
 from fastslam.filter.slam import FastSlam
 from fastslam.filter.smooth import spread_gaps
 from fastslam.geometry import compose, relative
-from fastslam.io.bag_reader import ODOM_WAIT, REFERENCE_TOPIC, BagData, read_bag
+from fastslam.io.bag_reader import REFERENCE_TOPIC, BagData, read_bag
 from fastslam.io.map_files import save_map
 from fastslam.io.records import BagError, OdomRecord, ScanRecord
 from fastslam.io.staging import staged_folder

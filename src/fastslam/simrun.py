@@ -17,9 +17,9 @@ from fastslam.config import SlamConfig
 from fastslam.eval.maps import run_quality, trajectory_errors
 from fastslam.filter.frontend import Dropped, Frontend
 from fastslam.filter.scan import Scan
+from fastslam.filter.scan_wait import ScanWait
 from fastslam.filter.slam import FastSlam, StepInfo
 from fastslam.geometry import relative
-from fastslam.io.bag_reader import ODOM_WAIT
 from fastslam.io.records import OdomRecord, ScanRecord
 from fastslam.sim.route import load_route
 from fastslam.sim.sim import SimConfig, Simulation
@@ -90,10 +90,8 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | NDArray[np.float64] | 
     truth, odom, scans, odoms = [], [], [], []
     spent, updates, dropped = 0.0, 0, 0
     angle_min, increment = float(lidar.angles[0]), float(lidar.angles[1] - lidar.angles[0])
-    # Scans wait for the odometry of their instant, or the next within ODOM_WAIT, as in
-    # the node and the offline tool (BagData.records): with rates that are not multiples
-    # of each other, the odometry is interpolated at the scan's stamp.
-    waiting: list[Scan] = []
+    # a scan between two odometry ticks waits for the next, as in the node (scan_wait.py)
+    waits: ScanWait[Scan] = ScanWait()
 
     def handle(scan: Scan) -> None:
         nonlocal spent, updates, dropped
@@ -112,8 +110,8 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | NDArray[np.float64] | 
 
     while simulation.time < max_time:
         tick = simulation.step()
-        while waiting and waiting[0].stamp + ODOM_WAIT < tick.t:   # waited in vain
-            handle(waiting.pop(0))
+        for held in waits.due(tick.t):
+            handle(held)
         if tick.odom_due:
             truth.append((tick.t, *relative(w.spawn, simulation.robot.pose)))
             odom.append((tick.t, *simulation.odom.pose))
@@ -121,8 +119,8 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | NDArray[np.float64] | 
             if record:
                 x, y, yaw = simulation.odom.pose
                 odoms.append(OdomRecord(tick.t, x, y, yaw, child_frame_id="base_footprint"))
-            while waiting:
-                handle(waiting.pop(0))
+            for held in waits.odometry(tick.t):
+                handle(held)
         if tick.scan is not None:
             ranges = tick.scan.astype(np.float32)  # as a LaserScan message carries them
             if record:
@@ -130,13 +128,11 @@ def run(world: str, slam_cfg: SlamConfig, *, route: str | NDArray[np.float64] | 
                                         sim_cfg.range_max, frame_id="base_scan"))
             scan = Scan.from_laser(ranges, angle_min, increment, sim_cfg.range_min, sim_cfg.range_max,
                                    mount=mount, stamp=tick.t)
-            if tick.odom_due:
-                handle(scan)
-            else:
-                waiting.append(scan)
+            for ready in waits.scan(tick.t, scan):
+                handle(ready)
         if tick.route_finished:
             break
-    for scan in waiting:
-        handle(scan)
+    for held in waits.rest():
+        handle(held)
     return SimRun(slam=slam, world=w, truth=np.array(truth), odom=np.array(odom), seconds=spent,
                   updates=updates, dropped=dropped, mount=mount, scans=scans, odoms=odoms)

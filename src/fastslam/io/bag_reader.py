@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Iterator, Tuple
 
 import numpy as np
 
+from fastslam.filter.scan_wait import ScanWait
 from fastslam.io.records import BAG_LIBRARY_HINT, BagError, OdomRecord, ScanRecord
 from fastslam.transforms import LaserMount, mount_from_matrix, transform_matrix
 
@@ -33,7 +34,6 @@ ODOM_TYPE = "nav_msgs/msg/Odometry"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 REFERENCE_TOPIC = "/ground_truth"   # the simulator's true pose (nav_msgs/Odometry), recorded by burger.launch
 READERS = ("rosbags", "rosbag")
-ODOM_WAIT = 0.1   # [s] the node's default odom_wait: how long a scan waits for odometry stamped at or after it
 DEFAULT_BASE_FRAME = "base_link"   # REP 105's robot frame: odometry naming no child frame moves it
 Message = Tuple[str, str, Any]      # topic, type (rosbags' spelling: pkg/msg/Name), message
 
@@ -56,33 +56,24 @@ class BagData:
         """Scans and odometry in the order the node handles them, played at their own speed.
 
         Merged in time order, odometry first on equal stamps. With odom_wait > 0, a scan
-        comes after the first odometry stamped at or after it, if that is stamped at
-        most odom_wait after it: the node waits up to odom_wait for it, then takes the
-        odometry at the scan's stamp between the poses on either side.
+        comes where the node handles it (filter/scan_wait.py): after the first odometry
+        stamped at or after it, if that is stamped at most odom_wait after it.
         """
-        pending: deque[ScanRecord] = deque()   # scans waiting for odometry stamped at or after them
-        newest = -np.inf                       # stamp of the newest odometry so far
+        waits: ScanWait[ScanRecord] = ScanWait(odom_wait)
         i = j = 0
         while i < len(self.scans) or j < len(self.odoms):
             if j < len(self.odoms) and (i >= len(self.scans) or self.odoms[j].t <= self.scans[i].t):
                 odom = self.odoms[j]
                 j += 1
-                newest = max(newest, odom.t)
-                while pending and pending[0].t + odom_wait < odom.t:   # waited in vain
-                    yield pending.popleft()
+                yield from waits.due(odom.t)
                 yield odom
-                while pending and pending[0].t <= odom.t:
-                    yield pending.popleft()
+                yield from waits.odometry(odom.t)
             else:
                 scan = self.scans[i]
                 i += 1
-                while pending and pending[0].t + odom_wait < scan.t:
-                    yield pending.popleft()
-                if odom_wait > 0 and newest < scan.t:
-                    pending.append(scan)
-                else:
-                    yield scan
-        yield from pending
+                yield from waits.due(scan.t)
+                yield from waits.scan(scan.t, scan)
+        yield from waits.rest()
 
     def odom_poses(self) -> NDArray[np.float64]:
         """(T, 4) float64 rows (t, x, y, yaw)."""

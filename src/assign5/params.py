@@ -42,8 +42,9 @@ class NodeConfig:
         "doc": "~save_map writes <map_file>.pgm/.yaml; a relative path is under $ROS_HOME (default ~/.ros)"})
     save_on_exit: bool = field(default=True, metadata={"doc": "save the map on shutdown (once something is mapped)"})
     odom_timeout: float = _num(0.5, 0.0, 60.0, "a scan this much newer than the latest odometry waits/drops [s]")
-    odom_wait: float = _num(ODOM_WAIT, 0.0, 5.0, "wall time a scan waits for odometry stamped at or after it, to "
-                            "interpolate the odometry at its stamp (the offline tool: the same in bag time) [s]")
+    odom_wait: float = _num(ODOM_WAIT, 0.0, 5.0, "odometry stamped up to this much after a scan is waited for (this "
+                            "and 0.1 s more of wall time) and interpolated with; later, the pose before the scan is "
+                            "used (the offline tool: the same) [s]")
     odom_buffer: float = _num(10.0, 0.5, 600.0, "seconds of odometry kept for interpolation [s]")
     max_odom_speed: float = _num(5.0, 0.01, 1000.0, "odometry stepping faster than this between two messages is "
                                  "out of step: counted, kept, merged with the previous one [m/s]")

@@ -29,6 +29,7 @@ from std_srvs.srv import Trigger
 
 from fastslam.config import SlamConfig
 from fastslam.filter.frontend import Dropped, Frontend, Reset
+from fastslam.filter.scan_wait import ODOM_DELIVERY
 from fastslam.filter.slam import FastSlam
 from fastslam.geometry import compose, inverse
 
@@ -53,7 +54,7 @@ class SlamNode:
         self.front = Frontend(self.slam, odom_timeout=cfg.odom_timeout, odom_buffer=cfg.odom_buffer,
                               max_odom_speed=cfg.max_odom_speed, max_odom_jump=cfg.max_odom_jump,
                               reset_backwards=cfg.reset_backwards, max_beams=cfg.max_beams,
-                              before_reset=self._before_reset)
+                              odom_lookahead=cfg.odom_wait, before_reset=self._before_reset)
         self.map_to_odom = (0.0, 0.0, 0.0)  # replaced whole: the tf timer reads it without the lock
         self.last_tf_time = rospy.Time(0)
         self.last_clock: float | None = None
@@ -188,15 +189,16 @@ class SlamNode:
         return self.slam.poses.copy(), self.slam.mean_pose(), self.slam.covariance()
 
     def _wait_for_odom(self, stamp: float) -> None:
-        """Gives odometry published with or after the scan a moment to arrive, so the
-        odometry is interpolated at the scan's stamp; the offline runner hands the scan
-        over in the same place of the stream (BagData.records)."""
+        """Gives odometry stamped at or after the scan a moment to arrive, so the odometry
+        is interpolated at the scan's stamp when the next message is stamped within
+        odom_wait (the Frontend's odom_lookahead), as the offline runner does: up to
+        odom_wait, and ODOM_DELIVERY for its delivery, of wall time."""
         def arrived() -> bool:
             latest = self.front.odom.latest
             return latest is not None and latest[0] >= stamp
 
         with self.odom_arrived:  # on_odom notifies
-            self.odom_arrived.wait_for(arrived, timeout=self.cfg.odom_wait)
+            self.odom_arrived.wait_for(arrived, timeout=self.cfg.odom_wait + ODOM_DELIVERY)
 
     def _log_events(self) -> None:
         for event in self.front.events:

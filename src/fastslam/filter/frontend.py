@@ -1,7 +1,9 @@
 """The rules between raw sensor streams and the filter, shared by the node and the
 offline runner so that a live replay and an offline run treat every message alike.
 
-Odometry is buffered and interpolated at each scan's stamp. A kidnap is judged by
+Odometry is buffered and interpolated at each scan's stamp, with odometry stamped at
+most odom_lookahead after it (scan_wait.py: where the node and the offline runner hand
+the scan over); with none that soon, the pose before the scan is used. A kidnap is judged by
 distance, whatever the time: a pose farther than max_odom_jump from every pose of the
 last JUMP_WINDOW seconds (not integrated). Odometry out of step (faster than
 max_odom_speed since the previous message, as two sources interleaved on one topic
@@ -28,6 +30,7 @@ import numpy as np
 from fastslam.filter.budget import MAX_BEAMS
 from fastslam.filter.odom_buffer import OdomBuffer
 from fastslam.filter.scan import Scan, fov_problem
+from fastslam.filter.scan_wait import ODOM_WAIT
 from fastslam.filter.slam import FastSlam, StepInfo
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -99,6 +102,9 @@ def drop_key(why: str) -> str:
 class Frontend:
     slam: FastSlam
     odom_timeout: float = 0.5    # a scan this much newer than the newest odometry is dropped [s]
+    # odometry stamped up to this much after a scan is interpolated with; later, the pose
+    # before the scan is used, whenever the later one arrived (scan_wait.py) [s]
+    odom_lookahead: float = ODOM_WAIT
     odom_buffer: float = 10.0    # [s] of odometry kept
     max_odom_speed: float = 5.0  # [m/s] a step between two odometry messages faster than this is out of step
     max_odom_jump: float = 5.0   # [m] farther from the recent odometry is a kidnap (the logs step <= 3.5 m)
@@ -203,7 +209,7 @@ class Frontend:
             latest = self.odom.latest   # the new run's odometry (near the scan) is kept, the old one's not
             self.reset(keep_odometry=latest is not None and latest[0] - t <= self.reset_backwards)
         self._restart = False
-        odom = self.odom.at(t, self.odom_timeout)
+        odom = self.odom.at(t, self.odom_timeout, self.odom_lookahead)
         if odom is None:
             latest = self.odom.latest
             if latest is None:

@@ -80,11 +80,13 @@ class OdomBuffer:
             out.append(self._p[j])
         return np.array(out).reshape(-1, 3)
 
-    def at(self, t: float, max_extrapolation: float) -> NDArray[np.float64] | None:
+    def at(self, t: float, max_extrapolation: float, lookahead: float = np.inf) -> NDArray[np.float64] | None:
         """(3,) pose at time t, linear in x, y and the wrapped heading.
 
         None when t lies before the buffer or more than max_extrapolation after its end
-        (a scan newer than the newest odometry by a little uses the newest pose).
+        (a scan newer than the newest odometry by a little uses the newest pose). A
+        sample stamped more than lookahead after t is not interpolated with: the pose
+        before t is used, as when that sample had not come yet.
         """
         if not self._t or t < self._t[0] or t > self._t[-1] + max_extrapolation:
             return None
@@ -94,6 +96,8 @@ class OdomBuffer:
         i = int(np.searchsorted(ts, t, side="right"))
         t0, t1 = ts[i - 1], ts[i]
         p0, p1 = self._p[i - 1], self._p[i]
+        if t1 > t + lookahead:   # the very comparison of ScanWait.due
+            return p0.copy()
         a = 0.0 if t1 == t0 else (t - t0) / (t1 - t0)
         out = p0 + a * (p1 - p0)
         out[2] = wrap_angle(p0[2] + a * wrap_angle(p1[2] - p0[2]))

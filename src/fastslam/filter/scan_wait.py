@@ -1,7 +1,8 @@
 """Where in the stream the node handles a scan: after the first odometry stamped at or
-after it, if that comes within odom_wait of it (slam.py waits that long for it, then
-interpolates the odometry at the scan's stamp); at once when odometry of its own stamp
-is in. The offline runner (BagData.records) and the simulator loop (simrun) hand scans
+after it, if that is stamped within odom_wait of it (slam.py waits for it, then
+interpolates the odometry at the scan's stamp; the Frontend interpolates with nothing
+stamped later, so when it arrives does not matter); at once when odometry of its own
+stamp is in. The offline runner (BagData.records) and the simulator loop (simrun) hand scans
 over in the same places, so all three give a scan the same odometry.
 """
 from __future__ import annotations
@@ -9,7 +10,8 @@ from __future__ import annotations
 from collections import deque
 from typing import Generic, TypeVar
 
-ODOM_WAIT = 0.1   # [s] the node's default odom_wait
+ODOM_WAIT = 0.1       # [s] the node's default odom_wait, in stamp time
+ODOM_DELIVERY = 0.1   # [s] of wall time the node waits beyond odom_wait for odometry stamped within it
 
 T = TypeVar("T")
 

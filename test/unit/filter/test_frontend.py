@@ -21,11 +21,27 @@ def front():
 def test_scan_uses_odometry_interpolated_at_its_stamp():
     f = front()
     f.add_odom(1.0, np.array([0.0, 0.0, 0.0]))
-    f.add_odom(2.0, np.array([1.0, 0.0, 0.0]))
+    f.add_odom(1.08, np.array([0.08, 0.0, 0.0]))
     f.add_scan(scan(1.0))
-    f.add_scan(scan(1.5))
-    np.testing.assert_allclose(f.slam.poses[:, 0], 0.5)
-    np.testing.assert_allclose(f.last_odom, [0.5, 0.0, 0.0])
+    f.add_scan(scan(1.04))
+    np.testing.assert_allclose(f.slam.poses[:, 0], 0.04)
+    np.testing.assert_allclose(f.last_odom, [0.04, 0.0, 0.0])
+
+
+def test_odometry_stamped_past_the_lookahead_is_not_used_whenever_it_came():
+    # the node may have the next message by the time it handles the scan, or not: alike
+    for late_first in (False, True):
+        f = front()                                        # odom_lookahead 0.1 s
+        f.add_odom(1.0, np.array([0.0, 0.0, 0.0]))
+        if late_first:
+            f.add_odom(1.3, np.array([0.3, 0.0, 0.0]))
+        f.add_scan(scan(1.15))
+        np.testing.assert_array_equal(f.scan_odom, [0.0, 0.0, 0.0])
+    f = front()
+    f.add_odom(1.0, np.array([0.0, 0.0, 0.0]))
+    f.add_odom(1.2, np.array([0.4, 0.0, 0.0]))             # 0.05 s after the scan: interpolated with
+    f.add_scan(scan(1.15))
+    np.testing.assert_allclose(f.scan_odom, [0.3, 0.0, 0.0])
 
 
 def test_drop_reasons():
@@ -96,9 +112,9 @@ def test_two_interleaved_sources_are_merged_not_discarded():
 def test_an_older_message_is_put_in_its_place():
     f = front()
     f.add_odom(1.0, np.zeros(3))
-    f.add_odom(2.0, np.array([1.0, 0.0, 0.0]))
-    f.add_odom(1.5, np.array([0.3, 0.0, 0.0]))      # late: between the two
-    f.add_scan(scan(1.25))
+    f.add_odom(1.2, np.array([0.4, 0.0, 0.0]))
+    f.add_odom(1.1, np.array([0.3, 0.0, 0.0]))      # late: between the two
+    f.add_scan(scan(1.05))
     np.testing.assert_allclose(f.slam.poses[:, 0], 0.15)
     assert f.counts == {"odometry out of order": 1}
 

@@ -17,6 +17,15 @@ def test_odom_buffer_interpolates_and_wraps_heading():
     assert buf.at(0.5, 0.5) is None and buf.at(2.6, 0.5) is None
 
 
+def test_a_sample_past_the_lookahead_is_not_interpolated_with():
+    buf = OdomBuffer(span=10.0)
+    buf.add(1.0, np.array([0.0, 0.0, 0.0]))
+    buf.add(2.0, np.array([1.0, 0.0, 0.0]))
+    np.testing.assert_allclose(buf.at(1.5, 0.5, lookahead=0.5), [0.5, 0.0, 0.0])   # exactly the limit: used
+    np.testing.assert_array_equal(buf.at(1.5, 0.5, lookahead=0.4999), [0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(buf.at(2.0, 0.5, lookahead=0.0), [1.0, 0.0, 0.0])  # a sample's own time
+
+
 def test_odom_buffer_forgets_old_samples_and_ignores_older_ones():
     buf = OdomBuffer(span=1.0)
     for t in np.arange(0.0, 3.01, 0.5):

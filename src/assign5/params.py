@@ -17,7 +17,7 @@ from fastslam.config import SlamConfig, translate_gmapping
 from fastslam.fields import ConfigError, check_fields, coerce
 from fastslam.fields import num as _num
 from fastslam.filter.budget import MAX_BEAMS, MAX_MAP_EXTENT, Limits, startup_problem
-from fastslam.filter.scan_wait import ODOM_WAIT
+from fastslam.filter.scan_wait import ODOM_DELIVERY, ODOM_WAIT
 
 T = TypeVar("T")
 OPTIONAL_STRINGS = ("base_frame",)   # empty: taken from the input (see the field's doc)
@@ -43,8 +43,8 @@ class NodeConfig:
     save_on_exit: bool = field(default=True, metadata={"doc": "save the map on shutdown (once something is mapped)"})
     odom_timeout: float = _num(0.5, 0.0, 60.0, "a scan this much newer than the latest odometry waits/drops [s]")
     odom_wait: float = _num(ODOM_WAIT, 0.0, 5.0, "odometry stamped up to this much after a scan is waited for (this "
-                            "and 0.1 s more of wall time) and interpolated with; later, the pose before the scan is "
-                            "used (the offline tool: the same) [s]")
+                            f"and {ODOM_DELIVERY:g} s more of wall time) and interpolated with; later, the pose before "
+                            "the scan is used (the offline tool: the same) [s]")
     odom_buffer: float = _num(10.0, 0.5, 600.0, "seconds of odometry kept for interpolation [s]")
     max_odom_speed: float = _num(5.0, 0.01, 1000.0, "odometry stepping faster than this between two messages is "
                                  "out of step: counted, kept, merged with the previous one [m/s]")

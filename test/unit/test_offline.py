@@ -39,7 +39,8 @@ def test_run_bag_counts_updates_and_drops_by_kind(room_ranges):
     np.testing.assert_allclose(result.slam.trajectory()[:, :2], [[1.0, 0.0], [1.2, 0.05]], atol=0.02)
     stats = result.stats()
     assert stats["scans"] == 5 and stats["updates"] == 2 and stats["dropped"] == result.dropped
-    assert stats["ms_per_update_median"] > 0 and stats["events"] == [] and stats["odometry_stalls_tracked"] == 0
+    assert stats["ms_per_update_median"] > 0 and stats["events"] == [] and stats["odometry_stalls_tracked"] == 0 \
+        and stats["matches_beyond_gate"] == 0
 
 
 def test_write_results(tmp_path, room_ranges):

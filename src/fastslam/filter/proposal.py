@@ -73,7 +73,7 @@ def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
         return match
     good = match.score >= cfg.match_good_score
     near = within_motion(match.poses, predicted, motion_spread(cfg, motion_std), cfg.match_gate)
-    return replace(match, trusted=match.trusted & (good | near))
+    return replace(match, trusted=match.trusted & (good | near), beyond_gate=match.trusted & good & ~near)
 
 
 def fuse_with_motion(matched: NDArray[np.float64], predicted: NDArray[np.float64], spread: NDArray[np.float64],

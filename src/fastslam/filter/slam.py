@@ -78,6 +78,7 @@ class FastSlam:
         self.refusals = 0  # growths refused (max_map_extent, memory), over every life
         self.recoveries = 0  # updates where the wider search (match_recover) found a trusted match
         self.stalls = 0      # scans tracked with the odometry stalled (track_scans)
+        self.beyond_gate = 0  # updates where a match beyond match_gate was trusted for its score
         self.reset()
 
     def reset(self) -> None:
@@ -326,6 +327,7 @@ class FastSlam:
         if match.trusted.any():
             self._sample_around(match)
             self._match = match
+            self.beyond_gate += int(match.beyond_gate is not None and bool(match.beyond_gate.any()))
         else:   # nothing to correct them (path_match_scale): the paths follow their motion, not the noisy particles
             self._path_next = self._path_predicted
         return int(match.trusted.sum())

@@ -85,6 +85,8 @@ class Match:
     Hessian less the prior), over icp_points end points (ICP only, else None).
     free: (N,) share of the matched end points on known free cells with nothing occupied
     near (free_space only, else None; short runs left out: free_share).
+    beyond_gate: (N,) the trusted matches farther from their motion prediction than the
+    filter's gate, trusted for their score (set by the filter's gate, else None).
     """
 
     poses: NDArray[np.float64]
@@ -94,6 +96,7 @@ class Match:
     scan_information: NDArray[np.float64] | None = None
     icp_points: int = 0
     free: NDArray[np.float64] | None = None
+    beyond_gate: NDArray[np.bool_] | None = None
 
 
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,

@@ -95,6 +95,7 @@ def test_gate_withdraws_trust_from_far_poor_matches_only():
     match = Match(poses=poses, trusted=np.ones(3, dtype=bool), score=np.array([0.5, 0.7, 0.5]))
     gated = gate_match(cfg, match, predicted, np.array([0.1, 0.1, 0.1]))
     np.testing.assert_array_equal(gated.trusted, [False, True, True])       # far and poor; far but good; near
+    np.testing.assert_array_equal(gated.beyond_gate, [False, True, False])   # trusted beyond the gate: the second
 
 
 def test_free_space_distrusts_a_match_that_puts_end_points_in_the_room(room_scan):
@@ -297,6 +298,26 @@ def test_the_wider_search_is_trusted_only_when_enough_particles_find_a_match(roo
     more = _slipped(room_scan, recover=8, share=0.6, lost=1.0, resample=0.0)
     assert more.recoveries == 0
     np.testing.assert_allclose(more.poses[:, :2], [[0.05, 0.0], [0.05, 1.0]], atol=0.03)
+
+
+def test_updates_that_trust_a_good_match_beyond_the_gate_are_counted(room_scan):
+    """The robot goes 0.09 m where odometry says 0.05: 2 std-devs of the 0.02 m floor, inside
+    the window (3) but beyond a gate of 1. Good matches (match_good_score 0.6) are trusted
+    there and the update is counted; with no match good enough (1.0), the particles stay
+    within the gate (1 std-dev, 0.02 m) of the odometry's 0.05 m and nothing is counted."""
+    for good, counted, x, tol in ((0.6, 1, 0.09, 0.01), (1.0, 0, 0.05, 0.02)):
+        cfg = SlamConfig(**REAL, particles=2, seed=0, toggle_noise=0, max_range=3.5, weight_model="likelihood",
+                         match_window=3, match_gate=1.0, match_good_score=good, match_min_score=0.3,
+                         match_min_known=20, match_floor_xy=0.02, match_floor_theta=0.01, match_xy_range=1.0,
+                         match_theta_range=0.5)
+        slam = FastSlam(cfg)
+        for i in range(7):
+            pose = np.array([-0.3 + 0.05 * i, 0.0, 0.0])
+            slam.step(pose, room_scan(pose, ANGLES, stamp=float(i)))
+        assert slam.beyond_gate == 0
+        slam.step(np.array([0.05, 0.0, 0.0]), room_scan(np.array([0.09, 0.0, 0.0]), ANGLES, stamp=7.0))
+        assert slam.beyond_gate == counted
+        np.testing.assert_allclose(slam.poses[:, 0], x, atol=tol)
 
 
 def test_the_wider_search_trusts_only_a_good_match(room_scan):

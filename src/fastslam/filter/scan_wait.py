@@ -1,6 +1,6 @@
 """Where in the stream the node handles a scan: after the first odometry stamped at or
-after it, if that is stamped within odom_wait of it (slam.py waits for it, then
-interpolates the odometry at the scan's stamp; the Frontend interpolates with nothing
+after it, if that is stamped within odom_wait of it (the node, assign5/slam_node.py, waits
+for it, then interpolates the odometry at the scan's stamp; the Frontend interpolates with nothing
 stamped later, so when it arrives does not matter); at once when odometry of its own
 stamp is in. The offline runner (BagData.records) and the simulator loop (simrun) hand scans
 over in the same places, so all three give a scan the same odometry.

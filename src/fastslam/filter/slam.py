@@ -327,7 +327,7 @@ class FastSlam:
         if match.trusted.any():
             self._sample_around(match)
             self._match = match
-            self.beyond_gate += int(match.beyond_gate is not None and bool(np.any(match.beyond_gate & match.trusted)))
+            self.beyond_gate += int(match.beyond_gate is not None and bool(match.beyond_gate.any()))   # all trusted
         else:   # nothing to correct them (path_match_scale): the paths follow their motion, not the noisy particles
             self._path_next = self._path_predicted
         return int(match.trusted.sum())

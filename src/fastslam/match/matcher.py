@@ -86,7 +86,8 @@ class Match:
     free: (N,) share of the matched end points on known free cells with nothing occupied
     near (free_space only, else None; short runs left out: free_share).
     beyond_gate: (N,) the trusted matches farther from their motion prediction than the
-    filter's gate, trusted for their score (set by the filter's gate, else None).
+    filter's gate, trusted for their score (set by the filter's gate, else None; the
+    recovery's share rule keeps them all or withdraws every match).
     """
 
     poses: NDArray[np.float64]

@@ -84,13 +84,17 @@ def converted(log: str, seed: int, level: float = 1.0) -> Path:
     gt = bag.with_name(bag.name + ".gt.txt")
     if not (bag.exists() and gt.exists()):
         CACHE.mkdir(parents=True, exist_ok=True)
-        bag.unlink(missing_ok=True)
-        cmd = [sys.executable, "-m", "fastslam.carmen_to_bag", str(data_path(f"{log}-corrected.log.gz")),
-               "--out", str(bag),
-               "--odom-noise", f"{level:g}", "--seed", str(seed)]
-        done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
-        if done.returncode != 0:
-            raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip()}")
+        # made aside and moved in, the bag last: another bench converting the same case at the
+        # same time finds either no bag or a whole one (each conversion of a case is the same)
+        with tempfile.TemporaryDirectory(prefix="converting-", dir=CACHE) as tmp:
+            made = Path(tmp) / bag.name
+            cmd = [sys.executable, "-m", "fastslam.carmen_to_bag", str(data_path(f"{log}-corrected.log.gz")),
+                   "--out", str(made), "--odom-noise", f"{level:g}", "--seed", str(seed)]
+            done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
+            if done.returncode != 0:
+                raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip()}")
+            for part in sorted(Path(tmp).iterdir(), key=lambda p: p.name == bag.name):
+                os.replace(part, CACHE / part.name)
         # the same case from an older converter is never read again: 3-6 MB a bag
         for old in CACHE.glob(f"{log}-noise{level:g}-seed{seed}-*.bag*"):
             if not old.name.startswith(bag.name):

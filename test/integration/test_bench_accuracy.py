@@ -1,9 +1,13 @@
 """The accuracy bench's cache of converted corrected logs (bench.accuracy.converted)."""
 from __future__ import annotations
 
+import subprocess
+from pathlib import Path
+
 import pytest
 
 from bench import accuracy
+from fastslam.io.trajectory_files import read_trajectory
 
 
 @pytest.fixture(autouse=True)
@@ -24,3 +28,24 @@ def test_a_new_conversion_removes_the_same_case_made_by_an_older_converter(tmp_p
     assert other_seed.exists() and other_log.exists()          # other cases stay
     made = bag.stat().st_mtime_ns
     assert accuracy.converted("seattle", 0) == bag and bag.stat().st_mtime_ns == made   # reused, not made again
+
+
+def test_another_bench_converting_the_same_case_at_the_same_time_is_no_failure(tmp_path, monkeypatch):
+    # two benches side by side (one a core) convert the same new case: the other's whole
+    # conversion lands in the cache while this one's converter runs
+    monkeypatch.setattr(accuracy, "CACHE", tmp_path)
+    run = subprocess.run
+
+    def other_bench_lands_first(cmd, **kw):
+        at = cmd.index("--out") + 1
+        theirs = list(cmd)
+        theirs[at] = str(tmp_path / Path(cmd[at]).name)
+        assert run(theirs, **kw).returncode == 0
+        return run(cmd, **kw)
+
+    monkeypatch.setattr(accuracy.subprocess, "run", other_bench_lands_first)
+    bag = accuracy.converted("seattle", 0)
+    gt = bag.with_name(bag.name + ".gt.txt")
+    assert bag.exists() and gt.exists()
+    assert len(read_trajectory(gt)[0]) == 241                  # every scan of the log has its pose
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([bag.name, gt.name, bag.name + ".odom.txt"])

@@ -71,6 +71,9 @@ class SlamConfig:
     free_beam_step: int = _num(1, 1, 10000, "likelihood mode: clear free space along every k-th used beam only "
                                             "(all mark their end cells)")
     max_range: float = _num(3.5, 0.1, 200.0, "ranges are used up to this distance [m]")
+    mark_range: float = _num(0.0, 0.0, 200.0, "likelihood mode: returns past max_range and short of this "
+                             "mark their end cells, weigh and match, but clear free space to max_range only; "
+                             "0 = off [m]")
     no_return_range: float = _num(3.5, 0.0, 200.0,
                                   "a beam with no return clears free space this far; 0 = not at all [m]")
     # Weights (assignment 3.4) and resampling (3.5)
@@ -172,6 +175,11 @@ class SlamConfig:
                               f"check it relaxes)")
         if self.track_scans and self.proposal != "scan_match":
             raise ConfigError("track_scans needs proposal=scan_match (it uses the scan matcher)")
+        if 0 < self.mark_range <= self.max_range:
+            raise ConfigError(f"mark_range={self.mark_range} must be 0 (off) or beyond max_range={self.max_range}")
+        if self.mark_range > self.max_range and self.weight_model != "likelihood":
+            raise ConfigError(f"mark_range={self.mark_range} needs weight_model=likelihood (the assignment's "
+                              "expected ranges end at max_range)")
         if self.match_weight != "likelihood" and (self.weight_model != "likelihood" or self.proposal != "scan_match"):
             raise ConfigError(f"match_weight={self.match_weight} needs weight_model=likelihood and proposal=scan_match")
         if self.match_weight == "normaliser" and (self.match_refine != "icp" or self.match_prior != "motion"):

@@ -28,6 +28,9 @@ def test_yaml_defaults_are_the_assignment(repo_root):
     ({"weight_model": "gauss"}, "weight_model='gauss' must be one of assignment, likelihood"),
     ({"fov_min": 30, "fov_max": -30}, "fov_min=30.0 must be less than fov_max=-30.0"),
     ({"max_range": float("nan")}, "max_range=nan must be in"),
+    ({"max_range": 20, "mark_range": 15, "weight_model": "likelihood"},
+     "mark_range=15.0 must be 0 (off) or beyond max_range=20.0"),
+    ({"max_range": 20, "mark_range": 30}, "mark_range=30.0 needs weight_model=likelihood"),
 ])
 def test_bad_values_name_the_parameter(values, message):
     with pytest.raises(ConfigError) as err:

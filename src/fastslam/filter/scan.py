@@ -63,7 +63,7 @@ class Beams:
     """The beams of one scan an update uses, classified.
 
     angles: (B,) base-frame directions; ranges: (B,) measured ranges.
-    hit: (B,) a return inside max_range: weighs the particle and marks its end cell.
+    hit: (B,) a return inside max_range (or mark_range): weighs the particle and marks its end cell.
     free_range: (B,) the distance each beam clears (0: it clears nothing) [m].
     """
 
@@ -129,7 +129,8 @@ def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
 
     Readings below range_min (zero, negative) are ignored; NaN, inf and >= range_max
     are no-returns that clear free space up to no_return_range; returns beyond the
-    filter's max_range clear up to max_range and mark nothing.
+    filter's max_range clear up to max_range and mark nothing, unless short of
+    mark_range: then they are hits that clear up to max_range only.
     """
     keep = in_fov(scan.angles, cfg, cfg.beam_step)
     z = scan.ranges[keep]
@@ -137,9 +138,9 @@ def select_beams(scan: Scan, cfg: SlamConfig) -> Beams:
         no_return = ~np.isfinite(z) | (z >= scan.range_max)
         short = ~no_return & (z < scan.range_min)
     ok = ~no_return & ~short
-    hit = ok & (z < cfg.max_range)
+    hit = ok & (z < max(cfg.max_range, cfg.mark_range))
     free = np.zeros(len(z))
-    free[hit] = z[hit]
+    free[hit] = np.minimum(z[hit], cfg.max_range)
     free[ok & ~hit] = cfg.max_range
     free[no_return] = min(cfg.no_return_range, cfg.max_range)
     return Beams(angles=scan.angles[keep], ranges=np.where(ok, z, np.inf), hit=hit,

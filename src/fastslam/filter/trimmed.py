@@ -37,6 +37,8 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
     """
     ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
+    far = hit & (ranges > free_range)    # past max_range (mark_range): marked like an untraced beam, traced as free
+    hit = hit & ~far
     reach = np.where(hit, ranges, free_range)
     order = np.argsort(reach, kind="stable")
     order = order[reach[order] > 0]                          # beams that clear nothing are skipped
@@ -44,10 +46,10 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
         return
     # Only every free_step-th beam (in angle) is traced; the others only mark their
     # end cells, computed directly from the end points.
-    marked = np.zeros(0, dtype=np.intp)
+    marked = np.flatnonzero(far)
     if free_step > 1:
         traced = (np.arange(m) % free_step) == 0
-        marked = np.flatnonzero(hit & ~traced)
+        marked = np.flatnonzero((hit & ~traced) | far)
         order = order[traced[order]]
     parts = [p for p in np.array_split(order, min(groups, len(order))) if len(p)]
     cols = np.concatenate(parts)

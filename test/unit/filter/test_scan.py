@@ -63,6 +63,17 @@ def test_select_beams_classifies_every_reading():
     assert b.range_min == 0.1 and b.mount == (0.3, 0.0)
 
 
+def test_returns_short_of_mark_range_are_hits_that_clear_to_max_range_only():
+    cfg = SlamConfig(max_range=3.0, no_return_range=2.0, weight_model="likelihood", mark_range=4.5)
+    z = [1.0, 4.0, 4.5, 5.0, np.inf]
+    scan = Scan(ranges=np.array(z), angles=np.linspace(-1, 1, 5), range_min=0.1, range_max=5.0)
+    b = select_beams(scan, cfg)
+    # a return; past max_range, short of mark_range; at mark_range; at range_max; no return
+    np.testing.assert_array_equal(b.hit, [True, True, False, False, False])
+    np.testing.assert_array_equal(b.ranges, [1.0, 4.0, 4.5, np.inf, np.inf])
+    np.testing.assert_array_equal(b.free_range, [1.0, 3.0, 3.0, 2.0, 2.0])
+
+
 def test_no_return_clears_at_most_max_range():
     scan = Scan(ranges=np.array([np.inf]), angles=np.zeros(1), range_min=0.1, range_max=5.0)
     assert select_beams(scan, SlamConfig(max_range=3.0, no_return_range=8.0)).free_range[0] == 3.0

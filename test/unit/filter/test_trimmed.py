@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from fastslam.config import SlamConfig
+from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
 
 ANGLES_4 = np.radians(np.arange(0.0, 360.0, 4.0))
@@ -63,3 +64,20 @@ def test_free_beam_step_clears_along_every_kth_beam_but_marks_all_end_cells(like
         return sum(int(np.count_nonzero(s.grid.particle_map(i) < 0)) for i in range(s.grid.particles))
 
     assert free_cells(slam) < free_cells(full)
+
+
+def test_a_return_past_max_range_short_of_mark_range_marks_its_end_cell_and_clears_to_max_range():
+    # one beam along +x, 3.0 m; the filter's max_range 2.0 m; without mark_range and with 4.0 m
+    scan = Scan(ranges=np.array([3.0]), angles=np.zeros(1), range_min=0.1, range_max=10.0)
+    points = np.array([[0.55, 0.05], [1.85, 0.05], [2.45, 0.05], [3.05, 0.05]])   # cells along the beam
+    cells = {}
+    for mark in (0.0, 4.0):
+        slam = FastSlam(SlamConfig(particles=2, seed=0, toggle_noise=0, weight_model="likelihood", max_range=2.0,
+                                   no_return_range=2.0, map_resolution=0.1, mark_range=mark))
+        slam.step(np.zeros(3), scan)
+        cells[mark] = _values(slam, points)
+    free, occupied = slam.grid.quantise(slam.cfg.l_free), slam.grid.quantise(slam.cfg.l_occ)
+    # cleared to max_range either way; between max_range and the return untouched; the end cell
+    # a wall only with mark_range
+    np.testing.assert_array_equal(cells[0.0], [[free, free, 0, 0]] * 2)
+    np.testing.assert_array_equal(cells[4.0], [[free, free, 0, occupied]] * 2)

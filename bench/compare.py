@@ -1,0 +1,113 @@
+"""Two sets of accuracy runs compared per log, on the seeds both have: is the difference more than the seeds' spread?
+
+    PYTHONPATH=src:. python -m bench.compare --before A.json [A2.json ...] --after B.json [B2.json ...]
+
+The files are `bench.accuracy --json` rows (several per side: runs split over processes or
+seeds; a later file's row for the same log and seed replaces an earlier one's). Per log:
+the median of seeds 0-2 (the targets' seeds) and of every common seed, the runs over the
+target (relations mean, or 0.15 m ATE) and over 0.5 m (the worst relation, or the ATE),
+and p: the share of random splits of the pooled runs, into groups of the two sides' sizes,
+whose medians differ at least as much in the observed direction (exact when there are few
+splits). On these logs seeds differ more than most changes do (docs/benchmarks.md, round
+16): judge a change on a dozen seeds or more, not on seeds 0-2.
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from bench.accuracy import CORRECTED, REAL, TARGET_ATE_MEDIAN, TARGET_ATE_WORST, TARGET_REL, TARGET_REL_MAX
+
+DRAWS = 20000          # random splits when there are more than this many
+
+
+def median_shift_p(before: list[float], after: list[float], seed: int = 0, draws: int = DRAWS) -> float:
+    """One-sided permutation p of the difference of medians, in the direction observed."""
+    a, b = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
+    sign = 1.0 if np.median(a) >= np.median(b) else -1.0
+    observed = sign * (np.median(a) - np.median(b))
+    pool, n = np.concatenate([a, b]), len(a)
+    if math.comb(len(pool), n) <= draws:
+        splits = np.array([np.isin(np.arange(len(pool)), c) for c in itertools.combinations(range(len(pool)), n)])
+    else:
+        rng = np.random.default_rng(seed)
+        order = np.argsort(rng.random((draws, len(pool))), axis=1)
+        splits = np.zeros((draws, len(pool)), dtype=bool)
+        np.put_along_axis(splits, order[:, :n], True, axis=1)
+    first = np.array([np.median(pool[s]) for s in splits])
+    second = np.array([np.median(pool[~s]) for s in splits])
+    return float(np.mean(sign * (first - second) >= observed - 1e-12))
+
+
+def read_rows(files: list[str]) -> dict[tuple[str, int], dict]:
+    """(log, seed) -> row, from bench.accuracy --json files."""
+    rows: dict[tuple[str, int], dict] = {}
+    for name in files:
+        try:
+            data = json.loads(Path(name).read_text())
+            rows.update({(str(r["log"]), int(r["seed"])): r for r in data})
+        except (OSError, ValueError, TypeError, KeyError) as err:
+            raise ValueError(f"{name}: not bench.accuracy --json rows ({err})") from None
+    return rows
+
+
+def compare(before: dict[tuple[str, int], dict], after: dict[tuple[str, int], dict]) -> list[dict]:
+    """Per log with common seeds: seeds, medians (seeds 0-2, all), runs over the target and over 0.5 m, p."""
+    out = []
+    for log in [*REAL, *CORRECTED]:
+        seeds = sorted(s for (name, s) in before if name == log and (name, s) in after)
+        if not seeds:
+            continue
+        line: dict = {"log": log, "seeds": seeds}
+        for side, rows in (("before", before), ("after", after)):
+            runs = [rows[(log, s)] for s in seeds]
+            err = [float(r["error"]) for r in runs]
+            worst = [float(r["rel_max"]) for r in runs] if log in REAL else err
+            line[side] = {"errors": err, "median_first3": float(np.median([e for s, e in zip(seeds, err) if s < 3]))
+                          if any(s < 3 for s in seeds) else float("nan"), "median": float(np.median(err)),
+                          "over_target": sum(e > TARGET_REL.get(log, TARGET_ATE_MEDIAN) for e in err),
+                          "over_half_metre": sum(w > (TARGET_REL_MAX if log in REAL else TARGET_ATE_WORST)
+                                                 for w in worst)}
+        line["p"] = median_shift_p(line["before"]["errors"], line["after"]["errors"])
+        out.append(line)
+    return out
+
+
+def table(lines: list[dict]) -> str:
+    """The comparison as a Markdown table."""
+    text = ["| log | seeds | before: median 0-2 / all; over target; over 0.5 m | after: the same | p |",
+            "|---|---|---|---|---|"]
+    for ln in lines:
+        fmt = "{:.4f}" if ln["log"] in REAL else "{:.3f}"
+        cells = [f"{fmt.format(s['median_first3'])} / {fmt.format(s['median'])}; {s['over_target']}; "
+                 f"{s['over_half_metre']}" for s in (ln["before"], ln["after"])]
+        seeds = f"{len(ln['seeds'])} ({ln['seeds'][0]}-{ln['seeds'][-1]})"
+        text.append(f"| {ln['log']} | {seeds} | {cells[0]} | {cells[1]} | {ln['p']:.2f} |")
+    return "\n".join(text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--before", nargs="+", required=True, metavar="JSON")
+    ap.add_argument("--after", nargs="+", required=True, metavar="JSON")
+    args = ap.parse_args(argv)
+    try:
+        lines = compare(read_rows(args.before), read_rows(args.after))
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    if not lines:
+        print("error: the two sides have no log and seed in common", file=sys.stderr)
+        return 2
+    print(table(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -33,15 +33,14 @@ def median_shift_p(before: list[float], after: list[float], seed: int = 0, draws
     sign = 1.0 if np.median(a) >= np.median(b) else -1.0
     observed = sign * (np.median(a) - np.median(b))
     pool, n = np.concatenate([a, b]), len(a)
-    if math.comb(len(pool), n) <= draws:
-        splits = np.array([np.isin(np.arange(len(pool)), c) for c in itertools.combinations(range(len(pool)), n)])
+    if math.comb(len(pool), n) <= draws:     # every split
+        chosen = np.array(list(itertools.combinations(range(len(pool)), n)), dtype=np.intp).reshape(-1, n)
     else:
-        rng = np.random.default_rng(seed)
-        order = np.argsort(rng.random((draws, len(pool))), axis=1)
-        splits = np.zeros((draws, len(pool)), dtype=bool)
-        np.put_along_axis(splits, order[:, :n], True, axis=1)
-    first = np.array([np.median(pool[s]) for s in splits])
-    second = np.array([np.median(pool[~s]) for s in splits])
+        chosen = np.argsort(np.random.default_rng(seed).random((draws, len(pool))), axis=1)[:, :n]
+    mask = np.zeros((len(chosen), len(pool)), dtype=bool)
+    np.put_along_axis(mask, chosen, True, axis=1)
+    rest = np.nonzero(~mask)[1].reshape(len(chosen), -1)           # each split's other side, row by row
+    first, second = np.median(pool[chosen], axis=1), np.median(pool[rest], axis=1)
     return float(np.mean(sign * (first - second) >= observed - 1e-12))
 
 
@@ -69,8 +68,9 @@ def compare(before: dict[tuple[str, int], dict], after: dict[tuple[str, int], di
             runs = [rows[(log, s)] for s in seeds]
             err = [float(r["error"]) for r in runs]
             worst = [float(r["rel_max"]) for r in runs] if log in REAL else err
-            line[side] = {"errors": err, "median_first3": float(np.median([e for s, e in zip(seeds, err) if s < 3]))
-                          if any(s < 3 for s in seeds) else float("nan"), "median": float(np.median(err)),
+            first3 = [e for s, e in zip(seeds, err) if s < 3]
+            line[side] = {"errors": err, "median": float(np.median(err)),
+                          "median_first3": float(np.median(first3)) if first3 else float("nan"),
                           "over_target": sum(e > TARGET_REL.get(log, TARGET_ATE_MEDIAN) for e in err),
                           "over_half_metre": sum(w > (TARGET_REL_MAX if log in REAL else TARGET_ATE_WORST)
                                                  for w in worst)}

@@ -64,12 +64,7 @@ class Services(ClockedCase):
             self.step(0.002, timeout=1.0)        # the node maps while it answers
         out, err = client.communicate(timeout=30)
         # a quick client leaves few stamps in its window: map on until enough are in for the gaps to tell
-        settle = time.monotonic() + 10
-        while time.monotonic() < settle:
-            with lock:
-                if sum(t >= start - PERIOD for t, _ in arrivals) >= 8:
-                    break
-            self.step(0.002, timeout=1.0)
+        self.wait_for_tf(arrivals, lock, count=8, since=start - PERIOD)
         end = time.monotonic()
         sub.unregister()
         self.assertEqual(client.returncode, 0, err)
@@ -87,11 +82,12 @@ class Services(ClockedCase):
             self.step(0.002, timeout=0.5)
         self.assertLess(self.rss_mb() - before, 100.0, "the calls left memory behind")
 
-    def wait_for_tf(self, arrivals, lock):
+    def wait_for_tf(self, arrivals, lock, count=3, since=0.0):
+        """Maps on until count map->odom transforms have arrived since that monotonic time."""
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline:
             with lock:
-                if len(arrivals) >= 3:
+                if sum(t >= since for t, _ in arrivals) >= count:
                     return
             self.step(0.002, timeout=0.5)
         self.fail("no map->odom on /tf")

@@ -64,7 +64,8 @@ class Beams:
 
     angles: (B,) base-frame directions; ranges: (B,) measured ranges.
     hit: (B,) a return inside max_range (or mark_range): weighs the particle and marks its end cell.
-    free_range: (B,) the distance each beam clears (0: it clears nothing) [m].
+    free_range: (B,) the distance each beam clears (0: it clears nothing) [m]; a hit
+        farther than it (past max_range, short of mark_range) marks its end cell only.
     """
 
     angles: NDArray[np.float64]

@@ -46,11 +46,12 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
         return
     # Only every free_step-th beam (in angle) is traced; the others only mark their
     # end cells, computed directly from the end points.
-    marked = np.flatnonzero(far)
+    marks = far
     if free_step > 1:
         traced = (np.arange(m) % free_step) == 0
-        marked = np.flatnonzero((hit & ~traced) | far)
+        marks = marks | (hit & ~traced)
         order = order[traced[order]]
+    marked = np.flatnonzero(marks)
     parts = [p for p in np.array_split(order, min(groups, len(order))) if len(p)]
     cols = np.concatenate(parts)
     # each beam traced to its group's length (all groups at once: fewer, small, numpy calls)

@@ -1,10 +1,12 @@
 """Accuracy over the whole development set, through the offline tool (`make bench accuracy`).
 
     PYTHONPATH=src:. python -m bench.accuracy [--config config/real.yaml] [--set key=value]... [--seeds 0 1 2]
-                             [--logs csail aces intel ...] [--json FILE]
+                             [--logs csail aces intel ...] [--jobs N] [--json FILE]
 
 Every case runs `python -m fastslam.offline BAG --out DIR --config ... --seed S`, the
-command a user runs, in its own process, one at a time:
+command a user runs, in its own process, one at a time (`--jobs N`: N at a time, for
+judging a change on many seeds; the time targets stand only at one at a time). Seeds
+are numbers or ranges: `--seeds 0-11 20`.
 
 - the real robots with their own odometry at their full scan rate (`mit-csail.bag`,
   `aces.bag`), scored with their ground-truth relations (Kuemmerle et al. 2009) on the
@@ -25,11 +27,12 @@ import argparse
 import hashlib
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from concurrent.futures import CancelledError, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -52,16 +55,20 @@ def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) 
     """The offline tool on bag in its own process; its stats plus the command's wall time."""
     cmd = [sys.executable, "-m", "fastslam.offline", str(bag), "--out", str(out), "--config", str(config),
            "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    done = subprocess.run(cmd, capture_output=True, text=True, env=_env())
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
-    if done.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr.strip().splitlines()[-1:]}")
+    with open(out.with_name(out.name + ".stderr"), "w+") as err:
+        start = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=_env())
+        # this child's own CPU time (cases may run side by side: RUSAGE_CHILDREN would mix them)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - start
+        proc.returncode = os.WEXITSTATUS(status) if os.WIFEXITED(status) else -os.WTERMSIG(status)
+        err.seek(0)
+        stderr = err.read()
+    cpu = usage.ru_utime + usage.ru_stime
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {stderr.strip().splitlines()[-1:]}")
     stats = json.loads((out / "stats.json").read_text())
-    warnings = [ln for ln in done.stderr.splitlines() if ln.startswith("warning")]
+    warnings = [ln for ln in stderr.splitlines() if ln.startswith("warning")]
     return {"wall_s": wall, "cpu_s": cpu, "peak_mb": stats["peak_memory_mb"], "updates": stats["updates"],
             "scans": stats["scans"], "warnings": len(warnings)}
 
@@ -173,18 +180,69 @@ def summary(rows: list[dict], error: str = "error", rel_max: str = "rel_max", ti
     return f"{title}: {met}/{total} targets met; " + "; ".join(parts)
 
 
+def seed_list(words: list[str]) -> list[int]:
+    """Seeds from numbers and ranges ("0-11": 0 to 11), in the order given."""
+    seeds: list[int] = []
+    for word in words:
+        first, dash, last = word.partition("-")
+        if not first.isdigit() or (dash and not last.isdigit()) or (dash and int(last) < int(first)):
+            raise ValueError(f"--seeds: {word!r} is neither a seed nor a range such as 0-11")
+        seeds += list(range(int(first), int(last if dash else first) + 1))
+    return seeds
+
+
+def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], work: Path,
+              jobs: int) -> list[dict]:
+    """Every (log, seed) case, jobs at a time; each log's table line printed once its cases
+    are done, the logs and seeds in the order given."""
+    failed = threading.Event()   # a failed case stops the bench: no case starts after it
+
+    def case(name: str, seed: int) -> dict:
+        if failed.is_set():   # (the bench meets the failure before any case skipped after it)
+            raise CancelledError(f"{name} seed {seed}: not run after a failed case")
+        try:
+            return (real_case if name in REAL else corrected_case)(name, seed, config, sets, work)
+        except BaseException:
+            failed.set()
+            raise
+
+    rows: list[dict] = []
+    with ThreadPoolExecutor(max_workers=jobs) as pool:   # threads: each only waits on its process
+        pending = {name: [pool.submit(case, name, seed) for seed in seeds] for name in logs}
+        try:
+            for name in logs:
+                log_rows = [f.result() for f in progress(pending[name], name)]
+                rows += log_rows
+                print_log(log_rows, name in REAL)
+        except BaseException:
+            failed.set()
+            for futures in pending.values():
+                for f in futures:
+                    f.cancel()
+            raise
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--config", default=str(ROOT / "config" / "real.yaml"))
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="passed to the offline tool")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--seeds", nargs="+", default=["0", "1", "2"], help="seeds and ranges (0-11)")
     ap.add_argument("--logs", nargs="+", default=list(REAL) + list(CORRECTED), choices=list(REAL) + list(CORRECTED))
+    ap.add_argument("--jobs", type=int, default=1, help="cases run at once (time targets: 1)")
     ap.add_argument("--json", metavar="FILE", help="also write every row here")
     args = ap.parse_args(argv)
+    try:
+        args.seeds = seed_list(args.seeds)
+    except ValueError as err:
+        ap.error(str(err))
+    if args.jobs < 1:
+        ap.error(f"--jobs: {args.jobs} is not a number of cases at once (1 or more)")
     config = Path(args.config).resolve()
     shown = config.relative_to(ROOT) if ROOT in config.parents else config  # no is_relative_to on 3.8
     print(f"accuracy: {shown}"
-          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {data_path('aces.bag').parent}")
+          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {data_path('aces.bag').parent}"
+          f"{f', {args.jobs} cases at once (wall and CPU seconds share the machine)' if args.jobs > 1 else ''}")
     print("rel: relations mean [m] of the pose at every scan (max: worst single relation); ATE [m] after "
           "alignment; live: the same for map->odom's poses (median); smoothed: the same for "
           "trajectory_smoothed.txt's (median, hindsight between processed scans); wall s, cpu s (user + "
@@ -192,13 +250,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'log':<13} {'':<4} {'seeds':<21} {'median':>7} {'worst':>7} {'max rel':>8} {'live':>7} "
           f"{'smoothed':>8} "
           f"{'wall s':>7} {'cpu s':>6} {'peak MB':>7} {'updates/scans'}")
-    rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="bench-accuracy-") as tmp:
-        for name in args.logs:
-            case = real_case if name in REAL else corrected_case
-            log_rows = [case(name, seed, config, args.set, Path(tmp)) for seed in progress(args.seeds, name)]
-            rows += log_rows
-            print_log(log_rows, name in REAL)
+        try:
+            rows = run_cases(args.logs, args.seeds, config, args.set, Path(tmp), args.jobs)
+        except RuntimeError as err:   # a case's command failed: its last line, no traceback
+            print(f"bench.accuracy: {err}", file=sys.stderr)
+            return 1
     print(summary(rows))
     print(summary(rows, "smoothed", "smoothed_max", "smoothed"))
     if args.json:

@@ -1,6 +1,7 @@
 """The accuracy bench's cache of converted corrected logs (bench.accuracy.converted)."""
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
@@ -49,3 +50,43 @@ def test_another_bench_converting_the_same_case_at_the_same_time_is_no_failure(t
     assert bag.exists() and gt.exists()
     assert len(read_trajectory(gt)[0]) == 241                  # every scan of the log has its pose
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([bag.name, gt.name, bag.name + ".odom.txt"])
+
+
+def test_seeds_are_numbers_and_ranges_in_the_order_given():
+    assert accuracy.seed_list(["0-2", "7", "4-5"]) == [0, 1, 2, 7, 4, 5]
+    assert accuracy.seed_list(["3-3"]) == [3]
+    for bad in ("3-1", "x", "1-", "-2", "1-2-3"):
+        with pytest.raises(ValueError, match="--seeds"):
+            accuracy.seed_list([bad])
+
+
+def test_cases_side_by_side_keep_their_order_results_and_own_cpu_time(tmp_path, monkeypatch):
+    # two cases at once: each row's CPU is its own process's (the children's total mixed
+    # them: the later of two cases took both), and the results are those of a case alone
+    monkeypatch.setattr(accuracy, "CACHE", tmp_path / "cache")
+    both = tmp_path / "both.json"
+    assert accuracy.main(["--logs", "seattle", "--seeds", "0-1", "--jobs", "2", "--json", str(both)]) == 0
+    rows = json.loads(both.read_text())
+    assert [(r["log"], r["seed"]) for r in rows] == [("seattle", 0), ("seattle", 1)]
+    for r in rows:
+        assert 0.5 < r["cpu_s"] <= 1.2 * r["wall_s"], r
+    alone = tmp_path / "alone.json"
+    assert accuracy.main(["--logs", "seattle", "--seeds", "1", "--json", str(alone)]) == 0
+    assert json.loads(alone.read_text())[0]["error"] == rows[1]["error"]
+
+
+def test_a_failing_case_is_one_line_and_exit_1_and_starts_no_other(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(accuracy, "CACHE", tmp_path / "cache")
+    started = []
+    real_case = accuracy.corrected_case
+
+    def counted(*args, **kw):
+        started.append(args[1])
+        return real_case(*args, **kw)
+
+    monkeypatch.setattr(accuracy, "corrected_case", counted)
+    code = accuracy.main(["--logs", "seattle", "--seeds", "0-5", "--set", "particles=0"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 1 and err[0].startswith("bench.accuracy: ") and "particles" in err[0], err
+    assert started == [0]

@@ -259,12 +259,13 @@ def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_s
 
 
 def _slipped(room_scan: Callable[..., Scan], recover: float, good: float = 0.6, share: float = 0.0,
-             lost: float = 0.0, resample: float = 1.0) -> FastSlam:
+             lost: float = 0.0, resample: float = 1.0, particles: int = 2, lost_ones: slice = slice(1, 2)
+             ) -> FastSlam:
     """Two particles map the pillar room along x with exact odometry; then the wheels
     slip: odometry moves 0.05 m, the robot 0.4 m, far outside the step's window (3 std-devs
-    of at least 0.02 m: 0.06 m), so no match there is trusted. lost: particle 1 is put that
-    far off in y before the slip; resample: resample_threshold."""
-    cfg = SlamConfig(**REAL, particles=2, seed=0, toggle_noise=0, max_range=3.5, weight_model="likelihood",
+    of at least 0.02 m: 0.06 m), so no match there is trusted. lost: particle 1 (lost_ones)
+    is put that far off in y before the slip; resample: resample_threshold."""
+    cfg = SlamConfig(**REAL, particles=particles, seed=0, toggle_noise=0, max_range=3.5, weight_model="likelihood",
                      match_window=3, match_gate=3.5, match_good_score=good, match_min_score=0.3,
                      match_min_known=20, match_max_free=0.2, match_floor_xy=0.02, match_floor_theta=0.01,
                      match_xy_range=1.0, match_theta_range=0.5, match_recover=recover, match_recover_share=share,
@@ -273,7 +274,7 @@ def _slipped(room_scan: Callable[..., Scan], recover: float, good: float = 0.6, 
     for i in range(7):
         pose = np.array([-0.3 + 0.05 * i, 0.0, 0.0])
         slam.step(pose, room_scan(pose, ANGLES, stamp=float(i)))
-    slam.poses[1, 1] += lost
+    slam.poses[lost_ones, 1] += lost
     slam.step(np.array([0.05, 0.0, 0.0]), room_scan(np.array([0.4, 0.0, 0.0]), ANGLES, stamp=7.0))
     return slam
 
@@ -298,6 +299,19 @@ def test_the_wider_search_is_trusted_only_when_enough_particles_find_a_match(roo
     more = _slipped(room_scan, recover=8, share=0.6, lost=1.0, resample=0.0)
     assert more.recoveries == 0
     np.testing.assert_allclose(more.poses[:, :2], [[0.05, 0.0], [0.05, 1.0]], atol=0.03)
+
+
+def test_the_real_preset_trusts_a_wider_search_that_two_of_five_particles_find(room_scan):
+    """config/real.yaml's match_recover_share: 2 of 5 particles find the slip, 3 are lost.
+    The ACES bag's seed 4 was lost (a 14 m relation) when 13 of 30 found the place again
+    and half were asked for (round 17)."""
+    share = SlamConfig.from_yaml(Path(__file__).resolve().parents[3] / "config" / "real.yaml").match_recover_share
+    found = _slipped(room_scan, recover=8, share=share, lost=1.0, resample=0.0, particles=5, lost_ones=slice(2, 5))
+    assert found.recoveries == 1
+    np.testing.assert_allclose(found.poses[:2, :2], [[0.4, 0.0]] * 2, atol=0.05)   # not the odometry's 0.05
+    np.testing.assert_allclose(found.poses[2:, :2], [[0.05, 1.0]] * 3, atol=0.03)      # their odometry
+    half = _slipped(room_scan, recover=8, share=0.5, lost=1.0, resample=0.0, particles=5, lost_ones=slice(2, 5))
+    assert half.recoveries == 0
 
 
 def test_updates_that_trust_a_good_match_beyond_the_gate_are_counted(room_scan):

@@ -70,7 +70,7 @@ def compare(before: dict[tuple[str, int], dict], after: dict[tuple[str, int], di
             worst = [float(r["rel_max"]) for r in runs] if log in REAL else err
             first3 = [e for s, e in zip(seeds, err) if s < 3]
             line[side] = {"errors": err, "median": float(np.median(err)),
-                          "median_first3": float(np.median(first3)) if first3 else float("nan"),
+                          "median_first3": float(np.median(first3)) if first3 else None,
                           "over_target": sum(e > TARGET_REL.get(log, TARGET_ATE_MEDIAN) for e in err),
                           "over_half_metre": sum(w > (TARGET_REL_MAX if log in REAL else TARGET_ATE_WORST)
                                                  for w in worst)}
@@ -79,15 +79,27 @@ def compare(before: dict[tuple[str, int], dict], after: dict[tuple[str, int], di
     return out
 
 
+def seed_ranges(seeds: list[int]) -> str:
+    """Sorted seeds as runs: [0, 1, 2, 5, 12, 13] -> "0-2, 5, 12-13"."""
+    runs: list[list[int]] = []
+    for s in seeds:
+        if runs and s == runs[-1][-1] + 1:
+            runs[-1].append(s)
+        else:
+            runs.append([s])
+    return ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in runs)
+
+
 def table(lines: list[dict]) -> str:
     """The comparison as a Markdown table."""
     text = ["| log | seeds | before: median 0-2 / all; over target; over 0.5 m | after: the same | p |",
             "|---|---|---|---|---|"]
     for ln in lines:
         fmt = "{:.4f}" if ln["log"] in REAL else "{:.3f}"
-        cells = [f"{fmt.format(s['median_first3'])} / {fmt.format(s['median'])}; {s['over_target']}; "
-                 f"{s['over_half_metre']}" for s in (ln["before"], ln["after"])]
-        seeds = f"{len(ln['seeds'])} ({ln['seeds'][0]}-{ln['seeds'][-1]})"
+        cells = [f"{'-' if s['median_first3'] is None else fmt.format(s['median_first3'])} / "
+                 f"{fmt.format(s['median'])}; {s['over_target']}; {s['over_half_metre']}"
+                 for s in (ln["before"], ln["after"])]
+        seeds = f"{len(ln['seeds'])} ({seed_ranges(ln['seeds'])})"
         text.append(f"| {ln['log']} | {seeds} | {cells[0]} | {cells[1]} | {ln['p']:.2f} |")
     return "\n".join(text)
 

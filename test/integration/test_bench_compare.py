@@ -39,6 +39,14 @@ def test_compare_counts_runs_over_the_targets_on_the_common_seeds(tmp_path, caps
     assert out[2].startswith("| edmonton | 3 (0-2) | 0.200 / 0.200; 2; 1 | 0.130 / 0.130; 0; 0 |")
 
 
+def test_seeds_beyond_the_first_three_show_no_median_of_them_and_their_runs_of_seeds(tmp_path, capsys):
+    before = _rows(tmp_path / "a.json", "intel", [(5, 0.1), (12, 0.2), (13, 0.3), (14, 0.4)])
+    after = _rows(tmp_path / "b.json", "intel", [(5, 0.1), (12, 0.2), (13, 0.3), (14, 0.4)])
+    assert compare.main(["--before", before, "--after", after]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[2].startswith("| intel | 4 (5, 12-14) | - / 0.250; 3; 0 | - / 0.250; 3; 0 |"), out[2]   # 3 over 0.15
+
+
 def test_the_real_bags_count_their_worst_relation_over_half_a_metre(tmp_path):
     rows = {("aces", s): {"log": "aces", "seed": s, "error": e, "rel_max": m}
             for s, e, m in [(0, 0.044, 0.3), (1, 0.046, 0.7), (2, 0.050, 0.4)]}

@@ -58,14 +58,15 @@ def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) 
     with open(out.with_name(out.name + ".stderr"), "w+") as err:
         start = time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=_env())
-        # this child's own CPU time (cases may run side by side: RUSAGE_CHILDREN would mix them)
+        # reaped here for this child's own CPU time (cases may run side by side: the
+        # children's total would mix them); Popen is told, so it never waits again
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - start
-        proc.returncode = os.WEXITSTATUS(status) if os.WIFEXITED(status) else -os.WTERMSIG(status)
+        proc.returncode = code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else -os.WTERMSIG(status)
         err.seek(0)
         stderr = err.read()
     cpu = usage.ru_utime + usage.ru_stime
-    if proc.returncode != 0:
+    if code != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {stderr.strip().splitlines()[-1:]}")
     stats = json.loads((out / "stats.json").read_text())
     warnings = [ln for ln in stderr.splitlines() if ln.startswith("warning")]
@@ -215,10 +216,7 @@ def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], 
                 rows += log_rows
                 print_log(log_rows, name in REAL)
         except BaseException:
-            failed.set()
-            for futures in pending.values():
-                for f in futures:
-                    f.cancel()
+            failed.set()   # (an interrupt here too) the cases not yet started end at once
             raise
     return rows
 

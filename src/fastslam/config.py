@@ -70,6 +70,9 @@ class SlamConfig:
     beam_step: int = _num(1, 1, 10000, "use every k-th beam")
     free_beam_step: int = _num(1, 1, 10000, "likelihood mode: clear free space along every k-th used beam only "
                                             "(all mark their end cells)")
+    free_beam_spacing: float = _num(0.0, 0.0, 180.0, "likelihood mode: and only along beams at least this far "
+                                    "apart, whatever the laser's resolution (a larger k than free_beam_step "
+                                    "where the beams lie closer); 0 = off [deg]")
     max_range: float = _num(3.5, 0.1, 200.0, "ranges are used up to this distance [m]")
     mark_range: float = _num(0.0, 0.0, 200.0, "likelihood mode: returns past max_range and short of this "
                              "mark their end cells, weigh and match, but clear free space to max_range only; "

@@ -399,7 +399,9 @@ class FastSlam:
                 if match is not None and cfg.match_weight == "normaliser":   # times the prior round the match
                     log_w = log_w + self._normaliser_terms(match, int(np.count_nonzero(sub.hit)))
             trimmed.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
-                                   groups=TRIM_GROUPS, free_step=cfg.free_beam_step)
+                                   groups=TRIM_GROUPS,
+                                   free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step,
+                                                                   cfg.free_beam_spacing))
         else:
             d = raycast.observe(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
                                 expected=weigh)

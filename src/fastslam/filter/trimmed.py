@@ -3,6 +3,7 @@ of similar length, each group only as far as its longest beam reaches.
 """
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -20,6 +21,18 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 # The trimmed update (likelihood mode) is faster in larger chunks (fewer, longer passes);
 # these keep its work arrays at a few MB (the Intel log in 66 MB, docs/benchmarks.md).
 TRIM_CHUNK_ELEMENTS = 3 << 16
+
+
+def clearing_step(angles: NDArray[np.float64], step: int, spacing: float) -> int:
+    """The k of "every k-th beam clears free space": step, or the least k that puts the
+    clearing beams (evenly spread angles, rad) at least spacing [deg] apart (0: step)."""
+    if spacing <= 0 or len(angles) < 2:
+        return step
+    between = abs(math.remainder(float(angles[1] - angles[0]), 2 * math.pi))
+    if between <= 0:
+        return step
+    # a laser's 0.5 degrees, stored in float32, may be a hair under: 1.5 degrees is 3 of them, not 4
+    return max(step, math.ceil(math.radians(spacing) / between - 0.01))
 
 
 def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,

@@ -8,17 +8,18 @@ import pytest
 from fastslam.config import SlamConfig
 from fastslam.filter.scan import Scan
 from fastslam.filter.slam import FastSlam
+from fastslam.filter.trimmed import clearing_step
 
 ANGLES_4 = np.radians(np.arange(0.0, 360.0, 4.0))
 
 
 @pytest.fixture
 def likelihood_map(room_scan, room_ranges):
-    """likelihood_map(free_beam_step) -> (filter, end points, mid points): one scan of the
+    """likelihood_map(free_beam_step, free_beam_spacing) -> (filter, end points, mid points): one scan of the
     pillar room written by the likelihood mode (trimmed trace) into 2 maps."""
-    def build(free_beam_step: int = 1) -> tuple[FastSlam, np.ndarray, np.ndarray]:
+    def build(free_beam_step: int = 1, free_beam_spacing: float = 0.0) -> tuple[FastSlam, np.ndarray, np.ndarray]:
         slam = FastSlam(SlamConfig(particles=2, seed=0, toggle_noise=0, weight_model="likelihood",
-                                   free_beam_step=free_beam_step))
+                                   free_beam_step=free_beam_step, free_beam_spacing=free_beam_spacing))
         pose = np.array([0.3, -0.2, 0.4])
         slam.step(pose, room_scan(pose, ANGLES_4))
         z = room_ranges(pose, ANGLES_4)
@@ -64,6 +65,46 @@ def test_free_beam_step_clears_along_every_kth_beam_but_marks_all_end_cells(like
         return sum(int(np.count_nonzero(s.grid.particle_map(i) < 0)) for i in range(s.grid.particles))
 
     assert free_cells(slam) < free_cells(full)
+
+
+def _maps(slam: FastSlam) -> np.ndarray:
+    return np.stack([slam.grid.particle_map(i) for i in range(slam.grid.particles)])
+
+
+def test_free_beam_spacing_clears_along_beams_that_far_apart(likelihood_map):
+    # beams 4 degrees apart: 12 degrees apart is every 3rd, 10 also (3 steps are the least
+    # reaching it), 8 every 2nd; a free_beam_step larger than the spacing asks for wins
+    third, _, _ = likelihood_map(free_beam_step=3)
+    second, _, _ = likelihood_map(free_beam_step=2)
+    assert not np.array_equal(_maps(third), _maps(second))
+    for step, spacing, same in ((1, 12.0, third), (1, 10.0, third), (1, 8.0, second), (3, 8.0, third),
+                                (2, 0.0, second)):
+        slam, _, _ = likelihood_map(free_beam_step=step, free_beam_spacing=spacing)
+        np.testing.assert_array_equal(_maps(slam), _maps(same), err_msg=f"step {step}, spacing {spacing}")
+
+
+@pytest.mark.parametrize("between_deg, step, spacing, k", [
+    (0.5, 2, 1.5, 3),     # a 0.5-degree laser (CSAIL): every 3rd
+    (1.0, 2, 1.5, 2),     # a 1-degree laser (ACES): every 2nd, the step
+    (0.25, 1, 1.5, 6),
+    (0.5, 1, 1.6, 4),     # 3.2 steps: 4, the least at least 1.6 degrees apart
+    (0.5, 5, 1.5, 5),     # free_beam_step larger
+    (0.5, 2, 0.0, 2),     # off
+])
+def test_clearing_step_is_the_least_k_putting_beams_spacing_apart(between_deg, step, spacing, k):
+    angles = np.radians(-90.0 + between_deg * np.arange(20))
+    assert clearing_step(angles, step, spacing) == k
+
+
+def test_clearing_step_reads_a_resolution_stored_a_hair_under_and_angles_across_pi():
+    # float32's 0.5 degrees is 0.5 less 1e-8 rad: still every 3rd for 1.5 degrees, not 4th
+    inc = float(np.float32(np.radians(0.5)))
+    assert inc < np.radians(0.5)
+    assert clearing_step(np.arange(10) * inc, 1, 1.5) == 3
+    # a laser mounted backwards: its angles wrap from +pi to -pi between the first two
+    angles = np.array([np.pi - np.radians(0.25), -np.pi + np.radians(0.25)])
+    assert clearing_step(angles, 1, 1.5) == 3
+    assert clearing_step(np.zeros(1), 2, 1.5) == 2      # one beam: nothing to space
 
 
 def test_a_return_past_max_range_short_of_mark_range_marks_its_end_cell_and_clears_to_max_range():

@@ -141,8 +141,9 @@ class Faults(ClockedCase):
         self.path_after(far)
         # it went on past the refused map's edge, not held at it. How far behind the odometry
         # depends on where the earlier tests left the robot (their loops step by wall time):
-        # from 3 m in, 47-49 m of the 50 m seen; from 25.7 m, 10 m short of it, 28 m (particles
-        # still inside the map see the ring where the scan puts it and outweigh those past it)
+        # from x = 3.2-3.6 m, 47-49 m of the 50 m seen; from 25.7 m (about 10 m short of the
+        # edge; one CI run), 28 m: particles still inside the map see the ring where the scan
+        # puts it and outweigh those past the edge
         edge = self.meta.origin.position.x + self.meta.width * self.meta.resolution
         self.assertGreater(self.poses[round(far.to_sec(), 6)], max(start + 10.0, edge + 5.0))
         self.assertLessEqual(self.meta.width * self.meta.resolution, 40.0 + 1e-6)

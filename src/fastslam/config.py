@@ -99,6 +99,9 @@ class SlamConfig:
     match_min_known: int = _num(100, 0, 10**9,
                                 "occupied 4x4-cell blocks a particle's map needs within scan reach before matching")
     match_beams: int = _num(60, 4, 10000, "scan-match with at most this many returns, evenly spread")
+    match_search_gain: float = _num(1.0, 0.01, 10.0, "the searches weigh each end point on a wall as this many "
+                                    "nats against the odometry prior (1: every end point independent; "
+                                    "neighbouring returns on one wall are not)")
     match_icp_beams: int = _num(0, 0, 10000, "match_refine: icp: on at most this many returns (the ICP costs little "
                                 "per end point, the search and the weights much); 0 = match_beams")
     match_weight: builtins.str = _choice("likelihood", ("likelihood", "match", "normaliser"),
@@ -141,7 +144,9 @@ class SlamConfig:
                                "particle's motion sample")
     match_recover: float = _num(0.0, 0.0, 100.0, "match_prior: motion: when no particle's match is trusted, "
                                 "search again with this many times the motion model's std-devs (window, prior "
-                                "and gate) and trust only matches with match_good_score; 0 = off")
+                                "and gate) and trust only matches with match_recover_score; 0 = off")
+    match_recover_score: float = _num(1.0, 0.0, 1.0, "match_recover: trust only the matches with at least this "
+                                      "share of their end points on occupied cells")
     match_recover_share: float = _num(0.0, 0.0, 1.0, "match_recover: trust its matches only when at least this "
                                       "share of the particles found one (a few: an ambiguity, as along a "
                                       "corridor, not a place found again); 0 = any")

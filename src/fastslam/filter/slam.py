@@ -338,7 +338,7 @@ class FastSlam:
         motion model, trusting only the matches that explain the scan well, and only when
         at least match_recover_share of the particles find one."""
         match = self._match_gated(beams, self._motion_std * self.cfg.match_recover)
-        good = match.trusted if match.score is None else match.trusted & (match.score >= self.cfg.match_good_score)
+        good = match.trusted if match.score is None else match.trusted & (match.score >= self.cfg.match_recover_score)
         if good.mean() < self.cfg.match_recover_share:
             good = np.zeros_like(good)  # a few particles' maps only: an ambiguity, not a place found again
         self.recoveries += int(good.any())

@@ -63,6 +63,7 @@ class MatchParams:
     icp_beams: int = 0           # ICP (refine "icp") on at most this many returns; 0: beams
     icp_from_prior: bool = False  # ICP also from the prior's centre, the better fit kept
     short_free: float = 0.0      # [m] free end points in runs spanning less than this do not count
+    search_gain: float = 1.0     # nats per end point on a wall in the searches, against the prior
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
@@ -70,7 +71,8 @@ class MatchParams:
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
                    max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
-                   icp_from_prior=cfg.match_icp_from_prior, short_free=cfg.match_short_free)
+                   icp_from_prior=cfg.match_icp_from_prior, short_free=cfg.match_short_free,
+                   search_gain=cfg.match_search_gain)
 
 
 @dataclass(frozen=True)
@@ -177,14 +179,14 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     # 1. coarse: wide window on 4x4 cells
     turns = np.arange(-ka, ka + 1) * dth
     pose = pick(grid_search(quarter, w_origin, coarse, poses, turns, local, k0, flags=True),
-                poses, turns, k0, coarse, centre, spread, m)
+                poses, turns, k0, coarse, centre, spread, m, params.search_gain)
     # 2. the best coarse cell again on 2x2 cells, then on the map's own cells
     turns = np.array([-0.5, 0.0, 0.5]) * dth
     pose = pick(grid_search(half, w_origin, 2 * res, pose, turns, local, 2, flags=True),
-                pose, turns, 2, 2 * res, centre, spread, m)
+                pose, turns, 2, 2 * res, centre, spread, m, params.search_gain)
     turns = np.array([-0.25, 0.0, 0.25]) * dth
     scores = grid_search(grid, grid.origin, res, pose, turns, local, 1)
-    pose = pick(scores, pose, turns, 1, res, centre, spread, m)
+    pose = pick(scores, pose, turns, 1, res, centre, spread, m, params.search_gain)
     # 3. finer than a cell
     cov = scan_info = None
     if icp_points is not None:

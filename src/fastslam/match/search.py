@@ -92,14 +92,16 @@ def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64],
 
 
 def pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[np.float64],
-          k: int, cell: float, start: NDArray[np.float64], prior: NDArray[np.float64], beams: int
-          ) -> NDArray[np.float64]:
+          k: int, cell: float, start: NDArray[np.float64], prior: NDArray[np.float64], beams: int,
+          gain: float = 1.0) -> NDArray[np.float64]:
     """Best candidate of each particle as a pose (N, 3).
 
     Scores become log-likelihoods as in _nats; the odometry prediction `start` (N, 3)
     adds a Gaussian prior with std-devs prior (3,) along and across its heading and of
     the heading, so that along a corridor, where the scan cannot tell, the particle
-    stays where odometry put it.
+    stays where odometry put it. gain scales the scores' nats: neighbouring returns on
+    one wall are not independent, and counting each as a whole nat lets two more end
+    points on a half-mapped wall outweigh a shift of two std-devs of the prior.
     """
     n, a, t = scores.shape
     d = np.arange(-k, k + 1)
@@ -112,7 +114,7 @@ def pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[n
         along, across = c * ox + s_ * oy, c * oy - s_ * ox                               # start's frame
     log_prior = -0.5 * (((along / prior[0]) ** 2 + (across / prior[1]) ** 2)[:, None, :]
                         + ((oa / prior[2]) ** 2)[:, :, None])
-    s = _nats(scores, beams) + log_prior
+    s = gain * _nats(scores, beams) + log_prior
     best = s.reshape(n, -1).argmax(axis=1)
     ia, it = np.divmod(best, t)
     iy, ix = np.divmod(it, 2 * k + 1)

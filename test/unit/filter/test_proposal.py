@@ -259,16 +259,18 @@ def test_match_weight_takes_the_likelihood_at_the_match_not_at_the_sample(room_s
 
 
 def _slipped(room_scan: Callable[..., Scan], recover: float, good: float = 0.6, share: float = 0.0,
-             lost: float = 0.0, resample: float = 1.0, particles: int = 2, lost_ones: slice = slice(1, 2)
-             ) -> FastSlam:
+             lost: float = 0.0, resample: float = 1.0, particles: int = 2, lost_ones: slice = slice(1, 2),
+             recover_score: float | None = None) -> FastSlam:
     """Two particles map the pillar room along x with exact odometry; then the wheels
     slip: odometry moves 0.05 m, the robot 0.4 m, far outside the step's window (3 std-devs
     of at least 0.02 m: 0.06 m), so no match there is trusted. lost: particle 1 (lost_ones)
-    is put that far off in y before the slip; resample: resample_threshold."""
+    is put that far off in y before the slip; resample: resample_threshold; recover_score:
+    match_recover_score (None: good, match_good_score)."""
     cfg = SlamConfig(**REAL, particles=particles, seed=0, toggle_noise=0, max_range=3.5, weight_model="likelihood",
                      match_window=3, match_gate=3.5, match_good_score=good, match_min_score=0.3,
                      match_min_known=20, match_max_free=0.2, match_floor_xy=0.02, match_floor_theta=0.01,
                      match_xy_range=1.0, match_theta_range=0.5, match_recover=recover, match_recover_share=share,
+                     match_recover_score=good if recover_score is None else recover_score,
                      resample_threshold=resample)
     slam = FastSlam(cfg)
     for i in range(7):
@@ -336,5 +338,17 @@ def test_updates_that_trust_a_good_match_beyond_the_gate_are_counted(room_scan):
 
 def test_the_wider_search_trusts_only_a_good_match(room_scan):
     strict = _slipped(room_scan, recover=8, good=1.0)      # no match explains every end point
+    np.testing.assert_allclose(strict.poses[:, 0], 0.05, atol=0.02)
+    assert strict.recoveries == 0
+
+
+def test_the_wider_search_has_its_own_score_to_trust(room_scan):
+    """match_recover_score, not match_good_score, decides which of the wider search's
+    matches are trusted: the slip's match passes the gate as a good one (0.6) either way,
+    and is trusted at a recovery score of 0.6, not at 1.0 (no match explains every end point)."""
+    found = _slipped(room_scan, recover=8, good=0.6, recover_score=0.6)
+    np.testing.assert_allclose(found.poses[:, :2], [[0.4, 0.0]] * 2, atol=0.03)
+    assert found.recoveries == 1
+    strict = _slipped(room_scan, recover=8, good=0.6, recover_score=1.0)
     np.testing.assert_allclose(strict.poses[:, 0], 0.05, atol=0.02)
     assert strict.recoveries == 0

@@ -116,9 +116,9 @@ def test_icp_with_covariance_returns_one_per_particle(mapped_room, scan360):
 
 def test_params_from_the_configuration():
     cfg = SlamConfig(match_beams=30, match_xy_range=0.4, match_theta_range=0.2, match_min_score=0.7,
-                     match_min_known=5, match_refine="icp", match_spread="match")
+                     match_min_known=5, match_refine="icp", match_spread="match", match_search_gain=0.3)
     assert MatchParams.from_config(cfg) == MatchParams(beams=30, xy_range=0.4, theta_range=0.2, min_score=0.7,
-                                                       min_known=5, refine="icp", covariance=True)
+                                                       min_known=5, refine="icp", covariance=True, search_gain=0.3)
     assert MatchParams.from_config(SlamConfig()) == MatchParams()        # the defaults agree
 
 

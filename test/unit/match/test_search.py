@@ -84,6 +84,27 @@ def test_pick_takes_the_best_score_against_a_weak_prior():
     np.testing.assert_allclose(out[0], [1.05, 1.95, 0.1])
 
 
+def test_search_gain_weighs_end_points_against_the_prior():
+    # Candidate dx = +1 cell (0.05 m along +x, the heading) puts 2 more of 20 end points on
+    # walls (best 20, so -2/20 * 60 = -6 nats at the centre). The prior along is 0.02 m:
+    # the shift costs 0.5 * (0.05 / 0.02)^2 = 3.125 nats. Gain 1: -6 < -3.125, the shift
+    # wins; gain 0.5: -3 > -3.125, the centre wins; gain 0.52: -3.12 > -3.125 still.
+    poses = np.array([[0.0, 0.0, 0.0]])
+    scores = np.full((1, 1, 9), 18, dtype=np.int64)
+    scores[0, 0, 5] = 20                                # t = 5: dy = 0, dx = +1
+    prior = np.array([0.02, 0.02, 0.1])
+    shifted = pick(scores, poses, np.zeros(1), 1, 0.05, poses, prior, 60)
+    np.testing.assert_allclose(shifted[0], [0.05, 0.0, 0.0])
+    np.testing.assert_allclose(pick(scores, poses, np.zeros(1), 1, 0.05, poses, prior, 60, gain=1.0)[0],
+                               [0.05, 0.0, 0.0])
+    for gain in (0.5, 0.52):
+        np.testing.assert_allclose(pick(scores, poses, np.zeros(1), 1, 0.05, poses, prior, 60, gain=gain)[0],
+                                   [0.0, 0.0, 0.0])
+    # just above the break-even gain 3.125 / 6 = 0.5208: the shift wins again
+    np.testing.assert_allclose(pick(scores, poses, np.zeros(1), 1, 0.05, poses, prior, 60, gain=0.53)[0],
+                               [0.05, 0.0, 0.0])
+
+
 def test_window_is_the_reach_of_the_poses_in_pooled_cells():
     grid = GridMaps(1, (40, 40), 0.25, (0.0, 0.0))
     # (2, 2) +- 0.5 m: cells 6 .. 10, rounded up to sides of POOL cells from cell 6

@@ -39,7 +39,7 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 from tqdm import tqdm
@@ -51,7 +51,7 @@ from fastslam.filter.budget import AUTO_SHARE, Limits, startup_problem
 from fastslam.filter.frontend import Dropped, Frontend, Reset, drop_key
 from fastslam.filter.scan import Scan, laser_problem
 from fastslam.filter.scan_wait import ODOM_WAIT
-from fastslam.filter.slam import FastSlam
+from fastslam.filter.slam import FastSlam, UpdateTrace
 from fastslam.filter.smooth import spread_gaps
 from fastslam.geometry import compose, relative
 from fastslam.io.bag_reader import REFERENCE_TOPIC, BagData, read_bag
@@ -143,10 +143,13 @@ class OfflineResult:
                 **({"accuracy": self.accuracy} if self.accuracy is not None else {})}
 
 
-def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False, limits: Limits | None = None) -> OfflineResult:
+def run_bag(data: BagData, cfg: SlamConfig, *, progress: bool = False, limits: Limits | None = None,
+            trace: Callable[[UpdateTrace], None] | None = None) -> OfflineResult:
     """Processes every message of the bag in time order, with the node's rules and bounds
-    (default: the node's defaults); the maps of the lives before each reset are kept."""
+    (default: the node's defaults); the maps of the lives before each reset are kept.
+    trace: called after each update (FastSlam.trace; bench/lineage.py)."""
     slam = FastSlam(cfg, limits=limits if limits is not None else default_limits(cfg))
+    slam.trace = trace
     result = OfflineResult(slam=slam)
 
     def keep_map(_event: Reset) -> None:

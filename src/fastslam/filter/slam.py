@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -65,6 +65,28 @@ class StepInfo:
     refused: str = ""  # why the maps were not grown, at the first refusal of this filter's life
 
 
+@dataclass(frozen=True)
+class UpdateTrace:
+    """One processed update as FastSlam.trace sees it (bench/lineage.py): arrays over the
+    particles in their order before this update's resampling, except path (after it).
+
+    predicted: (N, 3) noise-free motion predictions (None: the first update, or no matcher prior).
+    match: the update's match (trusted, recovered), None when the scan was not matched.
+    log_w_step: (N,) what this scan added to the log-weights; weights: (N,) before resampling.
+    parent: (N,) each particle's slot before resampling; path: (N, 3) the paths' new poses.
+    """
+
+    stamp: float
+    predicted: NDArray[np.float64] | None
+    match: Match | None
+    log_w_step: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    n_eff: float
+    resampled: bool
+    parent: NDArray[np.intp]
+    path: NDArray[np.float64]
+
+
 class FastSlam:
     """The particle set: poses (N, 3), log-weights (N,), maps (N, H, W), trajectories."""
 
@@ -79,6 +101,7 @@ class FastSlam:
         self.recoveries = 0  # updates where the wider search (match_recover) found a trusted match
         self.stalls = 0      # scans tracked with the odometry stalled (track_scans)
         self.beyond_gate = 0  # updates where a match beyond match_gate was trusted for its score
+        self.trace: Callable[[UpdateTrace], None] | None = None   # called after each update (diagnostics)
         self.reset()
 
     def reset(self) -> None:
@@ -111,6 +134,7 @@ class FastSlam:
         # The pose map->odom gives at the last scan seen: the best particle at an update,
         # moved by odometry (and, track_scans, the scan matcher) at the scans between.
         self._match: Match | None = None              # this update's gated match (match_weight)
+        self._proposed: Match | None = None           # ... trusted or not (trace)
         # This update's poses for map->odom and (path_match_scale 0) the paths: the trusted matches
         # themselves, not the samples drawn round them (those spread the particles; their noise adds to a path).
         self._centre: NDArray[np.float64] | None = None
@@ -154,9 +178,12 @@ class FastSlam:
         self._odom, self._stamp = odom, scan.stamp
         grew, clipped, refused = self._cover_beams()
         matched = 0
+        self._proposed = None
         if self.cfg.proposal == "scan_match" and not first:
             matched = self._propose(beams)                      # 1b. scan-matching proposal
+        log_w_before = self.log_w.copy() if self.trace is not None else None
         self._observe(beams)                                    # 2.+3. weights, then grid update
+        log_w_step = None if log_w_before is None else self._log_w_step(log_w_before)
         w = self.weights
         self.best = int(np.argmax(w))
         n_eff = neff(w)
@@ -169,6 +196,10 @@ class FastSlam:
         centre, self._centre = (self.poses if self._centre is None else self._centre), None
         path, self._path_next = (centre if self._path_next is None else self._path_next), None
         self.history.append(scan.stamp, path, parent)
+        if self.trace is not None and log_w_step is not None:
+            predicted = None if first or self.cfg.match_prior != "motion" else self._predicted.copy()
+            self.trace(UpdateTrace(scan.stamp, predicted, self._proposed, log_w_step, w,
+                                   n_eff, resampled, parent, path.copy()))   # path may be self.poses: moved later
         self.updates += 1
         self.live_pose = centre[self.best].copy()
         self._live_at_update = self.live_pose.copy()
@@ -324,6 +355,7 @@ class FastSlam:
         match = self._match_gated(beams, self._motion_std)
         if not match.trusted.any() and self.cfg.match_recover > 0:
             match = self._recover(beams)
+        self._proposed = match
         if match.trusted.any():
             self._sample_around(match)
             self._match = match
@@ -331,6 +363,11 @@ class FastSlam:
         else:   # nothing to correct them (path_match_scale): the paths follow their motion, not the noisy particles
             self._path_next = self._path_predicted
         return int(match.trusted.sum())
+
+    def _log_w_step(self, before: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(N,) what _observe added to the log-weights (it shifts them to a maximum of 0)."""
+        step = self.log_w - before
+        return step - step.max()
 
     def _recover(self, beams: Beams) -> Match:
         """No match trusted (drift has made the maps disagree with the scan, as on

@@ -150,6 +150,14 @@ class SlamConfig:
     match_recover_share: float = _num(0.0, 0.0, 1.0, "match_recover: trust its matches only when at least this "
                                       "share of the particles found one (a few: an ambiguity, as along a "
                                       "corridor, not a place found again); 0 = any")
+    match_loop: float = _num(0.0, 0.0, 1.0, "match_prior: motion: each update, also search the best particle's "
+                             "map match_loop_xy / match_loop_theta round its prediction; when that match scores this "
+                             "much above its own window's, and at least match_good_score, search every particle so "
+                             "and move those whose match there scores this much above their own, when at least "
+                             "match_recover_share of them do (a place seen long ago, found again beyond the "
+                             "window); 0 = off")
+    match_loop_xy: float = _num(1.0, 0.0, 10.0, "match_loop: search half-width in x and y [m]")
+    match_loop_theta: float = _num(0.15, 0.0, math.pi, "match_loop: search half-width in heading [rad]")
     path_match_scale: float = _num(0.0, 0.0, 1000.0, "published paths (scan_match): each particle's last path "
                                    "pose moved by the odometry (track_scans: the tracked motion), corrected by its "
                                    "match with the ICP's information scaled by this (ICP counts every end point as "
@@ -178,6 +186,8 @@ class SlamConfig:
         for name in ("match_gate", "match_window", "match_recover"):
             if getattr(self, name) > 0 and self.match_prior != "motion":
                 raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
+        if self.match_loop > 0 and self.match_prior != "motion":
+            raise ConfigError("match_loop needs match_prior=motion (it searches round the noise-free prediction)")
         if self.match_short_free > 0 and self.match_max_free >= 1.0:
             raise ConfigError(f"match_short_free={self.match_short_free} needs match_max_free < 1 (the free-space "
                               f"check it relaxes)")

@@ -40,7 +40,7 @@ def test_run_bag_counts_updates_and_drops_by_kind(room_ranges):
     stats = result.stats()
     assert stats["scans"] == 5 and stats["updates"] == 2 and stats["dropped"] == result.dropped
     assert stats["ms_per_update_median"] > 0 and stats["events"] == [] and stats["odometry_stalls_tracked"] == 0 \
-        and stats["matches_beyond_gate"] == 0
+        and stats["matches_beyond_gate"] == 0 and stats["match_loops"] == 0
 
 
 def test_write_results(tmp_path, room_ranges):

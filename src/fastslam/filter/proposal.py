@@ -76,6 +76,24 @@ def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
     return replace(match, trusted=match.trusted & (good | near), beyond_gate=match.trusted & good & ~near)
 
 
+def taken(match: Match, other: Match, take: NDArray[np.bool_]) -> Match:
+    """match with other's result for the particles where take (N,) holds, trusted there;
+    each per-particle field taken from the same side (covariance, score, information...)."""
+    def pick(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.where(take.reshape((-1,) + (1,) * (a.ndim - 1)), b, a)
+
+    def pick_some(a: NDArray[np.float64] | None, b: NDArray[np.float64] | None) -> NDArray[np.float64] | None:
+        return a if a is None or b is None else pick(a, b)
+
+    beyond = match.beyond_gate
+    if beyond is not None and other.beyond_gate is not None:
+        beyond = np.where(take, other.beyond_gate, beyond)
+    return replace(match, poses=pick(match.poses, other.poses), trusted=match.trusted | take,
+                   covariance=pick_some(match.covariance, other.covariance), score=pick_some(match.score, other.score),
+                   scan_information=pick_some(match.scan_information, other.scan_information),
+                   free=pick_some(match.free, other.free), beyond_gate=beyond)
+
+
 def fuse_with_motion(matched: NDArray[np.float64], predicted: NDArray[np.float64], spread: NDArray[np.float64],
                      scan_information: NDArray[np.float64]) -> NDArray[np.float64]:
     """(N, 3) the poses that best agree with both the matches (N, 3), of information

@@ -11,7 +11,14 @@ import pytest
 
 from fastslam.config import ConfigError, SlamConfig
 from fastslam.filter.motion import odometry_std
-from fastslam.filter.proposal import fuse_with_motion, gate_match, match_request, normaliser_log_terms, within_motion
+from fastslam.filter.proposal import (
+    fuse_with_motion,
+    gate_match,
+    match_request,
+    normaliser_log_terms,
+    taken,
+    within_motion,
+)
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.filter.slam import FastSlam
 from fastslam.match import Match, MatchParams, match_poses
@@ -352,3 +359,72 @@ def test_the_wider_search_has_its_own_score_to_trust(room_scan):
     strict = _slipped(room_scan, recover=8, good=0.6, recover_score=1.0)
     np.testing.assert_allclose(strict.poses[:, 0], 0.05, atol=0.02)
     assert strict.recoveries == 0
+
+
+def _drifted(room_scan: Callable[..., Scan], loop: float, share: float = 0.0, far: float = 0.0) -> FastSlam:
+    """Two particles map the pillar room along x with exact odometry; then both are put
+    0.4 m off in x, as a long loop's drift leaves them, and the robot moves on 0.05 m as
+    the odometry says. Round the drifted prediction the window (3 std-devs of the 0.02 m
+    floor: 0.06 m) finds a match that fits the walls along x and scores 0.45-0.47,
+    trusted (the free-space check off); the place itself lies 0.4 m away. far: particle 1
+    is put that far off in y too."""
+    cfg = SlamConfig(**REAL, particles=2, seed=0, toggle_noise=0, max_range=3.5, weight_model="likelihood",
+                     match_window=3, match_gate=3.5, match_good_score=0.6, match_min_score=0.3,
+                     match_min_known=20, match_floor_xy=0.02, match_floor_theta=0.01, match_xy_range=1.0,
+                     match_theta_range=0.5, match_recover_share=share, match_loop=loop, match_loop_xy=1.0,
+                     match_loop_theta=0.15, resample_threshold=0.0)
+    slam = FastSlam(cfg)
+    for i in range(7):
+        pose = np.array([-0.3 + 0.05 * i, 0.0, 0.0])
+        slam.step(pose, room_scan(pose, ANGLES, stamp=float(i)))
+    slam.poses[:, 0] += 0.4
+    slam.poses[1, 1] += far
+    slam.step(np.array([0.05, 0.0, 0.0]), room_scan(np.array([0.05, 0.0, 0.0]), ANGLES, stamp=7.0))
+    return slam
+
+
+def test_a_place_found_again_beyond_the_window_is_taken_when_it_scores_that_much_more(room_scan):
+    kept = _drifted(room_scan, loop=0.0)
+    np.testing.assert_allclose(kept.poses[:, 0], 0.43, atol=0.03)     # the window's match: still drifted
+    assert kept.loops == 0
+    found = _drifted(room_scan, loop=0.25)      # the wide search scores 0.98-1.0 against 0.45-0.47
+    np.testing.assert_allclose(found.poses[:, :2], [[0.05, 0.0]] * 2, atol=0.03)
+    assert found.loops == 1
+    strict = _drifted(room_scan, loop=0.9)      # 1.0 < 0.47 + 0.9: not that much more
+    np.testing.assert_allclose(strict.poses[:, 0], 0.43, atol=0.03)
+    assert strict.loops == 0
+
+
+def test_a_place_found_again_is_taken_only_when_enough_particles_find_it(room_scan):
+    """Particle 1, 2 m off in y as well, finds nothing within the wide search's 1 m:
+    one of two takes the place at match_recover_share 0.5, none at 0.6."""
+    half = _drifted(room_scan, loop=0.25, share=0.5, far=2.0)
+    assert half.loops == 1
+    np.testing.assert_allclose(half.poses[0, :2], [0.05, 0.0], atol=0.03)
+    assert abs(half.poses[1, 1] - 2.0) < 0.1                                  # its own window's
+    more = _drifted(room_scan, loop=0.25, share=0.6, far=2.0)
+    assert more.loops == 0
+    assert more.poses[0, 0] > 0.35                                          # both stay drifted
+
+
+def test_taken_swaps_every_field_of_the_particles_taken():
+    one = Match(poses=np.zeros((3, 3)), trusted=np.array([True, False, True]), covariance=np.zeros((3, 3, 3)),
+                score=np.array([0.5, 0.1, 0.6]), scan_information=np.zeros((3, 3, 3)), free=np.zeros(3),
+                beyond_gate=np.zeros(3, dtype=bool))
+    other = Match(poses=np.ones((3, 3)), trusted=np.array([True, True, False]), covariance=np.ones((3, 3, 3)),
+                  score=np.array([0.9, 0.8, 0.2]), scan_information=np.ones((3, 3, 3)), free=np.ones(3),
+                  beyond_gate=np.ones(3, dtype=bool), icp_points=7)
+    m = taken(one, other, np.array([False, True, False]))
+    np.testing.assert_array_equal(m.poses[:, 0], [0, 1, 0])
+    np.testing.assert_array_equal(m.trusted, [True, True, True])
+    np.testing.assert_array_equal(m.score, [0.5, 0.8, 0.6])
+    assert m.covariance is not None and m.scan_information is not None and m.free is not None
+    np.testing.assert_array_equal(m.covariance[:, 0, 0], [0, 1, 0])
+    np.testing.assert_array_equal(m.scan_information[:, 2, 2], [0, 1, 0])
+    np.testing.assert_array_equal(m.free, [0, 1, 0])
+    np.testing.assert_array_equal(m.beyond_gate, [False, True, False])
+
+
+def test_the_wide_search_needs_the_motion_prior():
+    with pytest.raises(ConfigError, match="match_loop needs match_prior=motion"):
+        SlamConfig(proposal="scan_match", match_prior="window", match_loop=0.25)

@@ -80,18 +80,16 @@ def lineage_rows(traces: Sequence[UpdateTrace], final: int) -> list[Row]:
         m = tr.match
         score = float("nan") if m is None or m.score is None else float(m.score[s])
         trusted = bool(m is not None and m.trusted[s])
+        rest = np.zeros(len(tr.weights), dtype=bool) if m is None else m.trusted.copy()
+        rest[s] = False                                    # the other particles' trusted matches
         corr = others_corr = None
         if m is not None and tr.predicted is not None:
             c = relative(tr.predicted, m.poses)
             corr = c[s]
-            rest = m.trusted.copy()
-            rest[s] = False
             others_corr = np.median(c[rest], axis=0) if rest.any() else None
-        rest_n = 0 if m is None else int(np.count_nonzero(m.trusted)) - int(trusted)
+        rest_n = int(np.count_nonzero(rest))
         others_score = float("nan")
         if m is not None and m.score is not None and rest_n:
-            rest = m.trusted.copy()
-            rest[s] = False
             others_score = float(np.median(m.score[rest]))
         out.append(Row(t=tr.stamp, slot=s, score=score, trusted=trusted, correction=corr, others=rest_n,
                        others_score=others_score, others_correction=others_corr,

@@ -361,7 +361,7 @@ class FastSlam:
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
         match = self._match_gated(beams, self._motion_std)
-        if self.cfg.match_loop > 0 and self.updates > 1:
+        if self.cfg.match_loop > 0 and self.updates > 1:     # (after one scan nothing was seen long ago)
             match = self._loop(beams, match)
         if not match.trusted.any() and self.cfg.match_recover > 0:
             match = self._recover(beams)

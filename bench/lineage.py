@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from fastslam.config import ConfigError, SlamConfig, parse_override
-from fastslam.eval.trajectory import align_2d, apply_alignment, ate_errors, match_by_time
+from fastslam.eval.trajectory import ate_errors, match_by_time
 from fastslam.filter.slam import UpdateTrace
 from fastslam.geometry import relative
 from fastslam.io.bag_reader import BagError, read_bag
@@ -123,8 +123,7 @@ def path_errors(rows: list[Row], reference: Path) -> NDArray[np.float64]:
     tt, r, e = match_by_time(ref_t, ref, t, est, max_dt=0.01)
     if len(tt) < 2:
         raise TrajectoryError(f"{reference}: no pose within 0.01 s of the path's")
-    rot, tr = align_2d(e, r)
-    err = ate_errors(r, apply_alignment(rot, tr, e))
+    err = ate_errors(r, e)        # aligns the whole path onto the reference first
     out = np.full(len(rows), np.nan)
     out[np.searchsorted(t, tt)] = err
     return out

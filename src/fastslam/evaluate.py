@@ -3,13 +3,14 @@ ground-truth relations (the Kuemmerle et al. 2009 metric).
 
     python -m fastslam.evaluate REFERENCE ESTIMATE [--max-dt 0.05] [--interpolate] [--delta 1] [--json]
                                 [--plot FILE.png]
-    python -m fastslam.evaluate --relations FILE ESTIMATE [--json]
+    python -m fastslam.evaluate --relations FILE ESTIMATE [--worst N] [--json]
 
 Trajectory files hold ``t x y theta`` lines or TUM's ``t x y z qx qy qz qw`` (``#``
 comments allowed), e.g. ``out.bag.gt.txt`` from ``python -m fastslam.carmen_to_bag`` and a
 SLAM run's trajectory; a relations file ``t1 t2 x y z roll pitch yaw`` lines. See
 :mod:`fastslam.eval.trajectory` for the definitions. ``--plot`` draws both trajectories
-after the alignment and the position error over time (matplotlib).
+after the alignment and the position error over time (matplotlib); ``--worst N`` lists
+the N relations the estimate errs most on (where a run went wrong).
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score
+from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score, worst_relations
 from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory
 
 
@@ -43,6 +44,17 @@ def format_relations(s: RelationScores) -> str:
     return "\n".join(f"{k:<16} {v}" for k, v in rows)
 
 
+WORST_KEYS = ("t1", "t2", "length", "trans", "rot", "speed")
+
+
+def format_worst(rows: Any) -> str:
+    """The worst relations (worst_relations' rows), one a line."""
+    head = f"{'t1 [s]':>14} {'t2 [s]':>14} {'length [m]':>10} {'error [m]':>9} {'[deg]':>7} {'speed [m/s]':>11}"
+    return "\n".join([f"worst {len(rows)}:", head] + [
+        f"{t1:14.3f} {t2:14.3f} {length:10.3f} {trans:9.3f} {rot:7.2f} {speed:11.2f}"
+        for t1, t2, length, trans, rot, speed in rows])
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m fastslam.evaluate", description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="+", metavar="REFERENCE ESTIMATE",
@@ -53,12 +65,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--delta", type=int, default=1, help="RPE over matched poses this many apart")
     ap.add_argument("--json", action="store_true", help="print the scores as JSON")
     ap.add_argument("--plot", metavar="FILE.png", help="also draw the aligned trajectories and the error over time")
+    ap.add_argument("--worst", type=int, metavar="N", default=0,
+                    help="with --relations: also list the N relations with the largest translation errors")
     args = ap.parse_args(argv)
     wanted = 1 if args.relations else 2
     if len(args.files) != wanted:
         ap.error("--relations FILE takes one ESTIMATE" if args.relations else "expected REFERENCE ESTIMATE")
     if args.relations and args.plot:
         ap.error("--plot draws an estimate against a reference trajectory, not against relations")
+    if args.worst and not args.relations:
+        ap.error("--worst lists relations: it needs --relations FILE")
+    if args.worst < 0:
+        ap.error(f"--worst must be at least 0 (got {args.worst})")
     if args.delta < 1 or not args.max_dt >= 0:
         print(f"error: --delta must be at least 1 (got {args.delta}) and --max-dt at least 0 (got {args.max_dt})",
               file=sys.stderr)
@@ -70,7 +88,14 @@ def main(argv: list[str] | None = None) -> int:
             if len(est_t) == 0:
                 raise TrajectoryError(f"{args.files[0]}: no poses")
             r = relations_score(est_t, est, relations)
-            return _report(r.as_dict(), format_relations(r), args.json)
+            scores: dict[str, Any] = dict(r.as_dict())
+            table = format_relations(r)
+            if args.worst:
+                worst = worst_relations(est_t, est, relations, args.worst)
+                scores["worst"] = [{k: (None if math.isinf(v) else float(v)) for k, v in zip(WORST_KEYS, row)}
+                                   for row in worst]
+                table += "\n" + format_worst(worst)
+            return _report(scores, table, args.json)
         ref_t, ref = read_trajectory(args.files[0])
         est_t, est = read_trajectory(args.files[1])
     except TrajectoryError as err:

@@ -70,6 +70,26 @@ def test_cli_relations_json_and_tum_estimate(tmp_path, capsys, relations_case):
     assert out["rot_max"] == pytest.approx(45.0, abs=1e-9)
 
 
+def test_cli_lists_the_worst_relations(tmp_path, capsys, relations_case):
+    write_trajectory(tmp_path / "est.txt", relations_case.t, relations_case.poses)
+    args = ["--relations", str(relations_case.path), str(tmp_path / "est.txt"), "--worst", "1"]
+    assert evaluate.main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[3] == "worst 1:" and len(lines) == 6
+    assert lines[5].split() == ["0.500", "2.500", "1.000", "0.500", "45.00", "0.50"]
+    assert evaluate.main(args + ["--json"]) == 0
+    worst = json.loads(capsys.readouterr().out)["worst"]
+    assert len(worst) == 1 and worst[0]["t1"] == 0.5 and worst[0]["trans"] == pytest.approx(0.5, abs=1e-12)
+
+
+@pytest.mark.parametrize("args", [["ref.txt", "est.txt", "--worst", "2"],
+                                  ["--relations", "r.txt", "est.txt", "--worst", "-1"]])
+def test_worst_needs_relations_and_a_count(args, capsys):
+    with pytest.raises(SystemExit) as stop:
+        evaluate.main(args)
+    assert stop.value.code == 2 and "--worst" in capsys.readouterr().err
+
+
 def test_cli_relations_errors(tmp_path, capsys, relations_case):
     write_trajectory(tmp_path / "est.txt", relations_case.t, relations_case.poses)
     (tmp_path / "bad.relations").write_text("1 2 3\n")

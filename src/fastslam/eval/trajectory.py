@@ -180,6 +180,24 @@ class RelationScores:
         return asdict(self)
 
 
+def worst_relations(times: ArrayLike, poses: ArrayLike, relations: ArrayLike, count: int) -> NDArray[np.float64]:
+    """(K, 6) rows t1, t2, the relation's length [m], its translation error [m] and
+    rotation error [deg] against the estimate, and the speed the relation asks for
+    (length / (t2 - t1), m/s; inf at t1 = t2): the count relations (at most) with the
+    largest translation errors, largest first. Where a run went wrong, and a relation
+    no robot could have driven (a reference's own slip) stands out by its speed."""
+    rel = np.asarray(relations, dtype=np.float64).reshape(-1, 5)
+    err = relation_errors(times, poses, rel)
+    trans = np.hypot(err[:, 0], err[:, 1])
+    order = np.argsort(-trans, kind="stable")[:max(count, 0)]
+    length = np.hypot(rel[order, 2], rel[order, 3])
+    span = np.abs(rel[order, 1] - rel[order, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.where(span > 0, length / np.where(span > 0, span, 1.0), np.inf)
+    return np.column_stack([rel[order, 0], rel[order, 1], length, trans[order],
+                            np.degrees(np.abs(err[order, 2])), speed])
+
+
 def relations_score(times: ArrayLike, poses: ArrayLike, relations: ArrayLike) -> RelationScores:
     """Mean, standard deviation (n - 1, as Cartographer) and maximum of the relation errors."""
     t = np.asarray(times, dtype=np.float64).reshape(-1)

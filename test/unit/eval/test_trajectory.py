@@ -16,6 +16,7 @@ from fastslam.eval.trajectory import (
     relations_score,
     rpe,
     score,
+    worst_relations,
 )
 from fastslam.io.trajectory_files import read_relations
 
@@ -142,6 +143,19 @@ def test_relations_metric_on_a_hand_made_case(relations_case):
     assert s.rot_mean == pytest.approx(22.5, abs=1e-9)
     assert s.rot_std == pytest.approx(math.sqrt(2 * 22.5 ** 2), abs=1e-9)
     assert s.rot_max == pytest.approx(45.0, abs=1e-9)
+
+
+def test_worst_relations_on_the_hand_made_case(relations_case):
+    rel = read_relations(relations_case.path)
+    rows = worst_relations(relations_case.t, relations_case.poses, rel, 5)
+    # the 0.5 m / 45 deg relation first (t 0.5 -> 2.5, 1 m in 2 s), then the exact one (-1 -> 1, 1 m in 2 s)
+    np.testing.assert_allclose(rows, [[0.5, 2.5, 1.0, 0.5, 45.0, 0.5], [-1.0, 1.0, 1.0, 0.0, 0.0, 0.5]],
+                               atol=1e-9)
+    np.testing.assert_allclose(worst_relations(relations_case.t, relations_case.poses, rel, 1), rows[:1])
+    assert worst_relations(relations_case.t, relations_case.poses, rel, 0).shape == (0, 6)
+    same_time = np.array([[1.0, 1.0, 0.3, 0.4, 0.0]])      # 0.5 m asked in no time
+    row = worst_relations(relations_case.t, relations_case.poses, same_time, 3)[0]
+    assert row[2] == pytest.approx(0.5) and row[3] == pytest.approx(0.5) and math.isinf(row[5])
 
 
 def test_interpolation_clamps_and_takes_the_short_way_round():

@@ -19,10 +19,14 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score, worst_relations
 from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    import numpy as np
+    from numpy.typing import NDArray
 
 
 def format_table(s: TrajectoryScores) -> str:
@@ -47,7 +51,7 @@ def format_relations(s: RelationScores) -> str:
 WORST_KEYS = ("t1", "t2", "length", "trans", "rot", "speed")
 
 
-def format_worst(rows: Any) -> str:
+def format_worst(rows: NDArray[np.float64]) -> str:
     """The worst relations (worst_relations' rows), one a line."""
     head = f"{'t1 [s]':>14} {'t2 [s]':>14} {'length [m]':>10} {'error [m]':>9} {'[deg]':>7} {'speed [m/s]':>11}"
     return "\n".join([f"worst {len(rows)}:", head] + [

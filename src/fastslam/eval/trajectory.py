@@ -192,8 +192,7 @@ def worst_relations(times: ArrayLike, poses: ArrayLike, relations: ArrayLike, co
     order = np.argsort(-trans, kind="stable")[:max(count, 0)]
     length = np.hypot(rel[order, 2], rel[order, 3])
     span = np.abs(rel[order, 1] - rel[order, 0])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.where(span > 0, length / np.where(span > 0, span, 1.0), np.inf)
+    speed = np.divide(length, span, out=np.full_like(length, np.inf), where=span > 0)
     return np.column_stack([rel[order, 0], rel[order, 1], length, trans[order],
                             np.degrees(np.abs(err[order, 2])), speed])
 

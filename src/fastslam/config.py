@@ -183,11 +183,10 @@ class SlamConfig:
             raise ConfigError(f"fov_min={self.fov_min} must be less than fov_max={self.fov_max}")
         if self.l_min >= self.l_max:
             raise ConfigError(f"l_min={self.l_min} must be less than l_max={self.l_max}")
-        for name in ("match_gate", "match_window", "match_recover"):
+        for name in ("match_gate", "match_window", "match_recover", "match_loop"):
             if getattr(self, name) > 0 and self.match_prior != "motion":
-                raise ConfigError(f"{name} needs match_prior=motion (it is in the motion model's std-devs)")
-        if self.match_loop > 0 and self.match_prior != "motion":
-            raise ConfigError("match_loop needs match_prior=motion (it searches round the noise-free prediction)")
+                raise ConfigError(f"{name} needs match_prior=motion (it works round the noise-free prediction, "
+                                  f"in the motion model's std-devs)")
         if self.match_short_free > 0 and self.match_max_free >= 1.0:
             raise ConfigError(f"match_short_free={self.match_short_free} needs match_max_free < 1 (the free-space "
                               f"check it relaxes)")

@@ -7,7 +7,7 @@ motion model, so the filter and the matcher bench (bench/matcher.py) do the same
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Tuple
+from typing import TYPE_CHECKING, Any, Tuple
 
 import numpy as np
 
@@ -79,19 +79,16 @@ def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
 def taken(match: Match, other: Match, take: NDArray[np.bool_]) -> Match:
     """match with other's result for the particles where take (N,) holds, trusted there;
     each per-particle field taken from the same side (covariance, score, information...)."""
-    def pick(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    def pick(a: NDArray[Any], b: NDArray[Any]) -> NDArray[Any]:
         return np.where(take.reshape((-1,) + (1,) * (a.ndim - 1)), b, a)
 
-    def pick_some(a: NDArray[np.float64] | None, b: NDArray[np.float64] | None) -> NDArray[np.float64] | None:
+    def pick_some(a: NDArray[Any] | None, b: NDArray[Any] | None) -> NDArray[Any] | None:
         return a if a is None or b is None else pick(a, b)
 
-    beyond = match.beyond_gate
-    if beyond is not None and other.beyond_gate is not None:
-        beyond = np.where(take, other.beyond_gate, beyond)
     return replace(match, poses=pick(match.poses, other.poses), trusted=match.trusted | take,
                    covariance=pick_some(match.covariance, other.covariance), score=pick_some(match.score, other.score),
                    scan_information=pick_some(match.scan_information, other.scan_information),
-                   free=pick_some(match.free, other.free), beyond_gate=beyond)
+                   free=pick_some(match.free, other.free), beyond_gate=pick_some(match.beyond_gate, other.beyond_gate))
 
 
 def fuse_with_motion(matched: NDArray[np.float64], predicted: NDArray[np.float64], spread: NDArray[np.float64],

@@ -33,7 +33,7 @@ from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
-from fastslam.match.refine import hill_climb, icp_fit, prior_information, surface_normals
+from fastslam.match.refine import ICP_ITERATIONS, hill_climb, icp_fit, prior_information, surface_normals
 from fastslam.match.search import POOL, POOL_CELLS, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -62,6 +62,7 @@ class MatchParams:
     max_free: float = 1.0        # a match with a larger share of them is not trusted
     icp_beams: int = 0           # ICP (refine "icp") on at most this many returns; 0: beams
     icp_from_prior: bool = False  # ICP also from the prior's centre, the better fit kept
+    icp_iterations: int = ICP_ITERATIONS  # the ICP's Gauss-Newton steps
     short_free: float = 0.0      # [m] free end points in runs spanning less than this do not count
     search_gain: float = 1.0     # nats per end point on a wall in the searches, against the prior
 
@@ -71,7 +72,8 @@ class MatchParams:
                    min_score=cfg.match_min_score, min_known=cfg.match_min_known, refine=cfg.match_refine,
                    covariance=cfg.match_spread == "match", free_space=cfg.match_max_free < 1.0,
                    max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
-                   icp_from_prior=cfg.match_icp_from_prior, short_free=cfg.match_short_free,
+                   icp_from_prior=cfg.match_icp_from_prior, icp_iterations=cfg.match_icp_iterations,
+                   short_free=cfg.match_short_free,
                    search_gain=cfg.match_search_gain)
 
 
@@ -190,7 +192,7 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     # 3. finer than a cell
     cov = scan_info = None
     if icp_points is not None:
-        pose, info = _icp(grid, pose, icp_points[0], icp_points[1], centre, spread, params.icp_from_prior)
+        pose, info = _icp(grid, pose, icp_points[0], icp_points[1], centre, spread, params)
         scan_info = info - prior_information(centre, spread)
         if params.covariance:
             cov = inv3(info)
@@ -262,7 +264,7 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
     sel = few if params.icp_beams <= params.beams else spread_returns(beams, params.icp_beams)
     local = coarse if sel is few else end_points(beams, sel)
     centre, spread = _prior(poses, params, prior)
-    pose, info = _icp(grid, start, local, surface_normals(beams, sel), centre, spread, params.icp_from_prior)
+    pose, info = _icp(grid, start, local, surface_normals(beams, sel), centre, spread, params)
     occupied, free = neighbourhood_flags(grid, pose, local)
     score = occupied.mean(axis=1)
     trusted = score >= params.min_score
@@ -274,22 +276,24 @@ def refine_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, param
 
 
 def _icp(grid: GridMaps, start: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
-         centre: NDArray[np.float64], spread: NDArray[np.float64], from_prior: bool
+         centre: NDArray[np.float64], spread: NDArray[np.float64], params: MatchParams
          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """ICP from the searched poses start (N, 3); (from_prior) also from the prior's centre,
-    each particle keeping the start whose result fits better.
+    """ICP (params.icp_iterations steps) from the searched poses start (N, 3); (params.icp_from_prior)
+    also from the prior's centre, each particle keeping the start whose result fits better.
 
     The searches score end points on occupied cells, which a blurred wall a few cells
     thick makes flat in heading over a degree or two, while the ICP's basin is about
     half a degree (ACES: a search turned a prediction 0.5 degrees off to 0.7 degrees
     off, and the ICP settled on the ghost of a wall drawn at that turn); the motion's
     own prediction is often the better start."""
-    if not from_prior:
-        pose, info, _ = icp_fit(grid, start, local, normals, centre, spread)
+    steps = params.icp_iterations
+    if not params.icp_from_prior:
+        pose, info, _ = icp_fit(grid, start, local, normals, centre, spread, iterations=steps)
         return pose, info
     n = len(start)
     both = np.arange(2 * n) % n
-    pose, info, fit = icp_fit(grid, np.concatenate([start, centre]), local, normals, centre[both], spread, maps=both)
+    pose, info, fit = icp_fit(grid, np.concatenate([start, centre]), local, normals, centre[both], spread, maps=both,
+                              iterations=steps)
     second = fit[n:] < fit[:n]
     return np.where(second[:, None], pose[n:], pose[:n]), np.where(second[:, None, None], info[n:], info[:n])
 

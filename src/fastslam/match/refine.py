@@ -16,7 +16,7 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 
 
 FINE_ITERATIONS = 6    # hill-climbing steps (a step halves when no neighbour improves)
-ICP_ITERATIONS = 3
+ICP_ITERATIONS = 3     # Gauss-Newton steps by default (match_icp_iterations)
 ICP_RADIUS = 2         # cells searched around each end point for occupied ones
 ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
 ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
@@ -112,8 +112,8 @@ def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], n
 
 
 def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
-            centre: NDArray[np.float64], spread: NDArray[np.float64], maps: NDArray[np.intp] | None = None
-            ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+            centre: NDArray[np.float64], spread: NDArray[np.float64], maps: NDArray[np.intp] | None = None,
+            iterations: int = ICP_ITERATIONS) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """3. Gauss-Newton steps on the distances from the end points to the centres of their
     nearest occupied cells (a weighted mean of them), measured along the surface normal where the scan gives one
     (normals (M, 2), robot frame; zero: the whole distance), plus the Gaussian prior
@@ -126,7 +126,9 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
     centres would pull the end points along walls.
 
     maps: (N,) the map of each pose (default pose n on map n), so that one call refines
-    several starts per particle. Returns the poses, their information matrices (the
+    several starts per particle. iterations: Gauss-Newton steps, at least 1 (the target,
+    a weighted mean of cells round the end point, moves with it: each step goes about
+    half the rest of the way). Returns the poses, their information matrices (the
     Hessian with the prior) and their fit: the objective, in squared std-devs, at the
     pose before the last step (an end point with no occupied cell in reach costs as
     much as one at the kernel's edge), for choosing among starts.
@@ -155,7 +157,7 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
     tmp = np.empty((n, m))
     with_prior = np.zeros((3, 3), dtype=bool)
     with_prior[[0, 1, 0, 1, 2], [0, 1, 1, 0, 2]] = True
-    for _ in range(ICP_ITERATIONS):
+    for _ in range(iterations):
         c, s = cos_sin(pose[:, 2, None])
         rx = c * lx - s * ly                                           # (N, M) end point - position
         ry = s * lx + c * ly

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, select_beams, spread_returns
-from fastslam.match.matcher import _icp
+from fastslam.match.matcher import MatchParams, _icp
 from fastslam.match.refine import (
     ICP_ITERATIONS,
     _bilinear_scores,
@@ -171,6 +172,34 @@ def test_icp_fit_refines_several_starts_of_one_map_as_separate_calls_do():
         assert fit[i] == pytest.approx(one_fit[0])
 
 
+def test_icp_steps_go_most_of_the_rest_of_the_way_to_a_thick_walls_centre_line():
+    # A wall two cells thick (centres x = 0.525 and 0.575), end points 0.5 m ahead, a prior
+    # too wide to matter. The first step's target is the two centres weighed by
+    # exp(-ex^2 / 2) at ex = -0.5 and -1.5 cells from the end points:
+    # (0.8825 * 0.5 + 0.3247 * 1.5) / 1.2072 = 0.769 cells = 0.0384 m. The target moves
+    # with the end points, so each later step leaves a part of the rest (here a quarter).
+    grid = GridMaps(1, (40, 40), 0.05, (-1.0, -1.0))
+    grid.logodds[0, :, 30:32] = 50
+    local = np.stack([np.full(21, 0.5), np.linspace(-0.5, 0.5, 21)], 1)
+    normals = np.tile([1.0, 0.0], (21, 1))
+    wide = np.array([10.0, 10.0, 10.0])
+    rest = []
+    for steps in (1, 2, 3, 4):
+        pose, _, _ = icp_fit(grid, np.zeros((1, 3)), local, normals, np.zeros((1, 3)), wide, iterations=steps)
+        assert abs(pose[0, 1]) < 1e-9 and abs(pose[0, 2]) < 1e-6
+        rest.append(0.05 - pose[0, 0])
+    w_near, w_far = np.exp(-0.125), np.exp(-1.125)
+    assert 0.05 - rest[0] == pytest.approx(0.05 * (0.5 * w_near + 1.5 * w_far) / (w_near + w_far), rel=1e-3)
+    assert all(0 < later < 0.3 * earlier for earlier, later in zip(rest, rest[1:]))
+    assert rest[3] < 2e-4
+
+
+def test_match_params_carry_the_icp_iterations(repo_root):
+    cfg = SlamConfig.from_yaml(repo_root / "config" / "real.yaml", {"match_icp_iterations": 5})
+    assert MatchParams.from_config(cfg).icp_iterations == 5
+    assert MatchParams.from_config(SlamConfig()).icp_iterations == ICP_ITERATIONS == 3
+
+
 def test_icp_from_the_prior_leaves_the_ghost_of_a_wall():
     # The map holds each wall twice, the copy 0.3 m further out (a wall drawn at a wrong
     # pose). From a start 0.3 m off the end points lie on the copies: a local minimum
@@ -186,7 +215,7 @@ def test_icp_from_the_prior_leaves_the_ghost_of_a_wall():
     centre = np.zeros((1, 3))
     start = np.array([[0.0, 0.3, 0.0]])
     spread = np.array([0.05, 0.05, 0.05])
-    alone, _ = _icp(grid, start, local, normals, centre, spread, from_prior=False)
-    both, _ = _icp(grid, start, local, normals, centre, spread, from_prior=True)
+    alone, _ = _icp(grid, start, local, normals, centre, spread, MatchParams(icp_from_prior=False))
+    both, _ = _icp(grid, start, local, normals, centre, spread, MatchParams(icp_from_prior=True))
     assert alone[0, 1] > 0.25                          # held by the ghost
     np.testing.assert_allclose(both[0], [0.0, 0.0, 0.0], atol=1e-6)

@@ -133,6 +133,8 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
     pose before the last step (an end point with no occupied cell in reach costs as
     much as one at the kernel's edge), for choosing among starts.
     """
+    if iterations < 1:
+        raise ValueError(f"icp_fit needs at least one step, got iterations={iterations}")
     n, m = len(pose), len(local)
     res = grid.resolution
     h, w = grid.shape

@@ -192,6 +192,8 @@ def test_icp_steps_go_most_of_the_rest_of_the_way_to_a_thick_walls_centre_line()
     assert 0.05 - rest[0] == pytest.approx(0.05 * (0.5 * w_near + 1.5 * w_far) / (w_near + w_far), rel=1e-3)
     assert all(0 < later < 0.3 * earlier for earlier, later in zip(rest, rest[1:]))
     assert rest[3] < 2e-4
+    with pytest.raises(ValueError, match="iterations=0"):
+        icp_fit(grid, np.zeros((1, 3)), local, normals, np.zeros((1, 3)), wide, iterations=0)
 
 
 def test_match_params_carry_the_icp_iterations(repo_root):

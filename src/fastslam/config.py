@@ -115,7 +115,7 @@ class SlamConfig:
         "doc": "match_refine: icp: also start the ICP from the prior's centre (match_prior: motion: the motion's "
                "prediction) and keep the better fit (the searches' heading steps exceed the ICP's reach)"})
     match_icp_iterations: int = _num(3, 1, 20, "match_refine: icp: Gauss-Newton steps of the ICP, the matcher's "
-                                     "and track_scans' (each goes about half the rest of the way)")
+                                     "and track_scans' (each goes only part of the rest of the way)")
     match_xy_range: float = _num(0.2, 0.0, 5.0, "scan-match search half-width in x and y [m]")
     match_theta_range: float = _num(0.1, 0.0, math.pi, "scan-match search half-width in heading [rad]")
     match_sigma_xy: float = _num(0.01, 0.0, 1.0, "spread of the sample around a matched pose [m]")

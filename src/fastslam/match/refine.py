@@ -103,14 +103,6 @@ def prior_information(centre: NDArray[np.float64], spread: NDArray[np.float64]) 
     return out
 
 
-def icp(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
-         centre: NDArray[np.float64], spread: NDArray[np.float64]
-         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """icp_fit without the fit: (poses (N, 3), information (N, 3, 3)), pose n on map n."""
-    pose, hess, _ = icp_fit(grid, pose, local, normals, centre, spread)
-    return pose, hess
-
-
 def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64], normals: NDArray[np.float64],
             centre: NDArray[np.float64], spread: NDArray[np.float64], maps: NDArray[np.intp] | None = None,
             iterations: int = ICP_ITERATIONS) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -127,8 +119,8 @@ def icp_fit(grid: GridMaps, pose: NDArray[np.float64], local: NDArray[np.float64
 
     maps: (N,) the map of each pose (default pose n on map n), so that one call refines
     several starts per particle. iterations: Gauss-Newton steps, at least 1 (the target,
-    a weighted mean of cells round the end point, moves with it: each step goes about
-    half the rest of the way). Returns the poses, their information matrices (the
+    a weighted mean of cells round the end point, moves with it: each step goes only part
+    of the rest of the way). Returns the poses, their information matrices (the
     Hessian with the prior) and their fit: the objective, in squared std-devs, at the
     pose before the last step (an end point with no occupied cell in reach costs as
     much as one at the kernel's edge), for choosing among starts.

@@ -13,7 +13,6 @@ from fastslam.match.refine import (
     ICP_ITERATIONS,
     _bilinear_scores,
     hill_climb,
-    icp,
     icp_fit,
     prior_information,
     surface_normals,
@@ -68,7 +67,7 @@ def test_icp_leaves_the_corridor_direction_to_the_prior():
     start = np.array([[0.06, 0.04, 0.02]])             # the particle's sample, further off
     spread = np.array([0.05, 0.05, 0.05])
     normals = np.tile([0.0, 1.0], (len(local), 1))     # walls along x
-    pose, _ = icp(grid, start, local, normals, centre, spread)
+    pose, _, _ = icp_fit(grid, start, local, normals, centre, spread)
     assert pose[0, 0] == pytest.approx(0.03, abs=0.003)
     assert abs(pose[0, 1]) < 0.003
     assert abs(pose[0, 2]) < 0.002
@@ -82,7 +81,7 @@ def test_icp_refines_a_sub_cell_offset_in_the_room(mapped_room, scan360):
     local = end_points(beams, sel)
     start = truth + np.array([[0.04, -0.03, 0.02]])
     spread = np.array([0.1, 0.1, 0.1])                 # a weak prior, centred on the start
-    pose, _ = icp(slam.grid, start, local, surface_normals(beams, sel), start, spread)
+    pose, _, _ = icp_fit(slam.grid, start, local, surface_normals(beams, sel), start, spread)
     assert np.hypot(*(pose[0, :2] - truth[:2])) < 0.015
     assert abs(pose[0, 2] - truth[2]) < np.radians(0.5)
 
@@ -92,7 +91,7 @@ def test_icp_on_an_empty_map_goes_to_the_prior_and_returns_its_information():
     local = np.array([[0.5, 0.0], [0.0, 0.5], [-0.3, 0.2]])
     centre = np.array([[0.1, -0.1, 0.0]])
     spread = np.array([0.05, 0.1, 0.2])                # along (x, heading 0), across (y), heading
-    pose, info = icp(grid, np.array([[0.2, 0.1, 0.3]]), local, np.zeros((3, 2)), centre, spread)
+    pose, info, _ = icp_fit(grid, np.array([[0.2, 0.1, 0.3]]), local, np.zeros((3, 2)), centre, spread)
     np.testing.assert_allclose(pose, centre, atol=1e-12)      # a quadratic: one Gauss-Newton step
     np.testing.assert_allclose(info[0], np.diag([400.0, 100.0, 25.0]), atol=1e-9)
 
@@ -105,7 +104,7 @@ def test_prior_information_turns_with_the_heading_as_the_icp_prior_does():
     got = prior_information(centre, spread)
     np.testing.assert_allclose(got[0], np.diag([100.0, 400.0, 25.0]), atol=1e-9)
     local = np.array([[0.5, 0.0], [0.0, 0.5]])
-    _, info = icp(grid, centre, local, np.zeros((2, 2)), centre, spread)   # empty maps: the prior alone
+    _, info, _ = icp_fit(grid, centre, local, np.zeros((2, 2)), centre, spread)   # empty maps: the prior alone
     np.testing.assert_allclose(got, info, atol=1e-9)
 
 
@@ -125,7 +124,7 @@ def test_icp_covariance_is_wide_only_along_the_corridor():
     normals = np.tile([0.0, 1.0], (len(local), 1))
     centre = np.zeros((1, 3))
     spread = np.array([0.05, 0.05, 0.05])
-    _, info = icp(grid, centre.copy(), local, normals, centre, spread)
+    _, info, _ = icp_fit(grid, centre.copy(), local, normals, centre, spread)
     std = np.sqrt(np.diag(np.linalg.inv(info[0])))
     # along: the prior alone; across: 42 end points of sigma 0.05 m and the prior;
     # heading: their lever arms along the walls (the walls' y cancel between the two)

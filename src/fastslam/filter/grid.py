@@ -16,11 +16,7 @@ implement it; code outside this module and the backends never touches the storag
 - ``particle_map(n)``: particle n's whole map as an (H, W) array, read only (for
   publishing, saving, evaluating);
 - ``crop(y0, y1, x0, x1, first, stop)``: a dense (k, y1 - y0, x1 - x0) window of
-  particles first..stop-1, read only;
-- ``pooled(y0, y1, x0, x1, first, stop)``: that window pooled to 2x2 and 4x4 blocks
-  (fastslam.filter.pooling.pool_signed), the matcher's coarse levels; blocks start at
-  lattice cells that are multiples of POOL (``offset``: cell (iy, ix) is lattice cell
-  (iy + offset[0], ix + offset[1]));
+  particles first..stop-1, read only (the matcher pools it);
 - ``cells(first, stop, lo, hi)``: a CellSpace, the flat addressing the ray tracer reads
   and writes a box of cells of particles first..stop-1 through (``close()`` it after
   writing);
@@ -38,8 +34,6 @@ import math
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-
-from fastslam.filter.pooling import POOL, POOL_CELLS, pool_signed
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import ArrayLike, NDArray
@@ -113,8 +107,6 @@ class GridMaps:
         origin: (x, y) world coordinates of the lower-left corner of cell (0, 0) [m].
         l_limit: largest |log-odds| to represent; sets the quantisation step.
     """
-
-    offset: tuple[int, int] = (0, 0)   # cell (iy, ix) is lattice cell (iy + offset[0], ix + offset[1])
 
     def __init__(self, n: int, shape: tuple[int, int], resolution: float,
                  origin: tuple[float, float], l_limit: float = 5.0) -> None:
@@ -260,23 +252,6 @@ class GridMaps:
         """(k, y1 - y0, x1 - x0) cells y0 <= iy < y1, x0 <= ix < x1 of particles
         first..stop-1 (default all), inside the grid; read only."""
         return _read_only(self.logodds[first:stop, y0:y1, x0:x1])
-
-    def pooled(self, y0: int, y1: int, x0: int, x1: int, first: int = 0, stop: int | None = None
-               ) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
-        """The crop (y0, y1, x0, x1, first, stop) pooled to 2x2 and 4x4 blocks (pool_signed):
-        (k, (y1 - y0) / 2, (x1 - x0) / 2) and (k, (y1 - y0) / 4, (x1 - x0) / 4); sides
-        multiples of POOL. Here a few maps' crops at a time (the work arrays stay small)."""
-        stop = self.particles if stop is None else stop
-        k, h, w = stop - first, y1 - y0, x1 - x0
-        if h % POOL or w % POOL:
-            raise ValueError(f"a pooled window's sides must be multiples of {POOL}, got {h} x {w}")
-        half = np.empty((k, h // 2, w // 2), dtype=np.int8)
-        quarter = np.empty((k, h // POOL, w // POOL), dtype=np.int8)
-        maps = max(1, POOL_CELLS // max(h * w, 1))
-        for a in range(0, k, maps):
-            b = min(k, a + maps)
-            pool_signed(self.crop(y0, y1, x0, x1, first + a, first + b), out=(half[a:b], quarter[a:b]))
-        return half, quarter
 
     def put(self, n: ArrayLike, iy: ArrayLike, ix: ArrayLike, values: ArrayLike) -> None:
         """Writes cells (iy, ix) of particles n (as values reads them)."""

@@ -15,10 +15,6 @@ Tiles freed by resampling (no table refers to them any more) are reused; the poo
 an anonymous memory map grown in place (mremap), whose pages cost memory only once a
 tile is used.
 
-The matcher's pooled levels (2x2 and 4x4 blocks) are kept per tile and pooled again
-only for tiles written since (a scan writes about a fifth of the tiles the matcher
-reads): a window is its tiles' pooled levels laid side by side.
-
 The ray tracer reads and writes a box of cells of a few particles at a time through
 a CellSpace: either a dense copy of the box (TilePatch: the tiles copied in, the
 changed ones written back through copy-on-write at close), when the beams visit
@@ -34,7 +30,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fastslam.filter.grid import FEW_CELLS, LOGODDS_DTYPE, CellSpace, GridMaps, _read_only
-from fastslam.filter.pooling import POOL, POOL_CELLS, pool_signed
 from fastslam.filter.scratch import scratch
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -64,9 +59,6 @@ class TilePool:
         self.top = 1             # ids below have been handed out at least once (0: unknown)
         self._free = np.zeros(0, dtype=np.int32)
         self._nfree = 0
-        # each tile pooled to 2x2 and 4x4 blocks (pool_signed), made when first asked for
-        self._levels: tuple[NDArray[np.int8], NDArray[np.int8]] | None = None
-        self._pooled = np.zeros(0, dtype=bool)   # whether _levels holds a tile's cells as they are
         self._reserve(max(int(capacity), 2))
 
     @property
@@ -93,10 +85,6 @@ class TilePool:
         refs = np.zeros(capacity, dtype=np.int32)
         refs[:len(self.refs)] = self.refs
         self.refs = refs
-        if self._levels is not None:
-            half, quarter = self._levels
-            self._levels = (_grown(half, capacity), _grown(quarter, capacity))
-            self._pooled = _grown(self._pooled, capacity)
         self.capacity = capacity
 
     def alloc(self, k: int) -> NDArray[np.int32]:
@@ -112,34 +100,6 @@ class TilePool:
             self.top += rest
         self.refs[ids] = 1
         return ids
-
-    def changed(self, ids: NDArray[np.integer[Any]]) -> None:
-        """Tiles ids are about to be written: their pooled levels are stale."""
-        if self._levels is not None:
-            self._pooled[ids] = False
-            self._pooled[0] = True   # the unknown tile is never written
-
-    def levels(self, ids: NDArray[np.integer[Any]]) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
-        """(capacity, rows / 2, columns / 2) and (capacity, rows / 4, columns / 4): every
-        tile pooled (pool_signed), current for the tiles ids (those pooled again first)."""
-        ty, tx = self.tile
-        if self._levels is None:
-            if ty % POOL or tx % POOL:
-                raise ValueError(f"tiles of {ty} x {tx} cells cannot be pooled to {POOL} x {POOL} blocks")
-            self._levels = (np.zeros((self.capacity, ty // 2, tx // 2), dtype=np.int8),
-                            np.zeros((self.capacity, ty // POOL, tx // POOL), dtype=np.int8))
-            self._pooled = np.zeros(self.capacity, dtype=bool)
-            self._pooled[0] = True   # the unknown tile: zeros, as its levels are
-        half, quarter = self._levels
-        ids = np.unique(ids)
-        stale = ids[~self._pooled[ids]].astype(np.intp)
-        per = max(1, POOL_CELLS // self.tile_bytes)
-        for a in range(0, len(stale), per):   # a few tiles at a time: the work arrays stay small
-            some = stale[a:a + per]
-            h, q = pool_signed(self.tiles[some])
-            half[some], quarter[some] = h, q
-        self._pooled[stale] = True
-        return half, quarter
 
     def release(self, ids: NDArray[np.integer[Any]]) -> None:
         """Drops one reference of each of ids (repeats count, id 0 ignored); tiles left
@@ -180,13 +140,6 @@ class TilePool:
         """Memory the tiles and their counts take: tiles handed out at least once (a
         free one is reused before a new one is touched)."""
         return self.top * self.tile_bytes + int(self.refs.nbytes) + int(self._free.nbytes)
-
-
-def _grown(a: NDArray[Any], capacity: int) -> NDArray[Any]:
-    """a with its first axis grown to capacity (new entries zero)."""
-    out = np.zeros((capacity,) + a.shape[1:], dtype=a.dtype)
-    out[:len(a)] = a
-    return out
 
 
 def _anonymous(size: int) -> mmap.mmap:
@@ -348,28 +301,6 @@ class TileMaps(GridMaps):
         sy, sx = y0 + oy - r0 * ty, x0 + ox - c0 * tx
         return _read_only(out.reshape(k, nr * ty, nc * tx)[:, sy:sy + y1 - y0, sx:sx + x1 - x0])
 
-    def pooled(self, y0: int, y1: int, x0: int, x1: int, first: int = 0, stop: int | None = None
-               ) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
-        """As GridMaps.pooled: the window's tiles' own pooled levels (kept by the pool, pooled
-        again only where written since), laid side by side; a window whose corner is not on a
-        lattice multiple of POOL is cropped and pooled."""
-        oy, ox = self.offset
-        if (y0 + oy) % POOL or (x0 + ox) % POOL or (y1 - y0) % POOL or (x1 - x0) % POOL:
-            return super().pooled(y0, y1, x0, x1, first, stop)
-        stop = self.particles if stop is None else stop
-        r0, c0 = (y0 + oy) >> self._ly, (x0 + ox) >> self._lx
-        r1, c1 = ((y1 - 1 + oy) >> self._ly) + 1, ((x1 - 1 + ox) >> self._lx) + 1
-        ids = self.table[first:stop, r0:r1, c0:c1]
-        sy, sx = y0 + oy - r0 * self.tile[0], x0 + ox - c0 * self.tile[1]
-        out = []
-        for level, f in zip(self.pool.levels(ids), (2, POOL)):
-            k, nr, nc = ids.shape
-            _, ty, tx = level.shape
-            rows = ids[:, :, None, :].astype(np.intp) * ty + np.arange(ty)[:, None]      # (k, nr, rows, nc)
-            tiles = np.take(level.reshape(-1, tx), rows, axis=0).reshape(k, nr * ty, nc * tx)
-            out.append(np.ascontiguousarray(tiles[:, sy // f:(sy + y1 - y0) // f, sx // f:(sx + x1 - x0) // f]))
-        return out[0], out[1]
-
     def _gather(self, ids: NDArray[np.int32], out: NDArray[np.int8] | None = None) -> NDArray[np.int8]:
         """(k, nr, rows, nc, columns) the tiles ids (k, nr, nc) laid out as dense rows: one
         gather of tile rows (a row of a tile is contiguous in the pool)."""
@@ -458,7 +389,6 @@ class TileMaps(GridMaps):
             alone = np.flatnonzero(count[held] == pool.refs[held])
             copy[first[held[alone]]] = False
         if not copy.any():
-            pool.changed(ids)
             return ids
         old = ids[copy]
         new = pool.alloc(len(old))
@@ -470,7 +400,6 @@ class TileMaps(GridMaps):
             np.subtract.at(pool.refs, drop, 1)     # never to 0: shared by more than the writers
         flat[slots[copy]] = new
         ids[copy] = new
-        pool.changed(ids)
         return ids
 
 

@@ -31,11 +31,10 @@ import numpy as np
 
 from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
-from fastslam.filter.pooling import POOL
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
 from fastslam.match.refine import ICP_ITERATIONS, hill_climb, icp_fit, prior_information, surface_normals
-from fastslam.match.search import grid_search, pick, search_area, window
+from fastslam.match.search import POOL, POOL_CELLS, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -210,13 +209,18 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
 
 
 def _pooled(grid: GridMaps, box: tuple[int, int, int, int], signed: bool) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
-    """The maps' cells x0 <= ix < x1, y0 <= iy < y1 pooled to 2x2 and 4x4 cells: signed
-    (pool_signed), else 1 where any cell is occupied (pool_occupied)."""
+    """The maps' cells x0 <= ix < x1, y0 <= iy < y1 pooled to 2x2 and 4x4 cells
+    (pool_signed or pool_occupied), a few maps at a time (their crops stay small)."""
     x0, y0, x1, y1 = box
-    half, quarter = grid.pooled(y0, y1, x0, x1)
-    if signed:
-        return half, quarter
-    return (half > 0).view(np.int8), (quarter > 0).view(np.int8)
+    n = grid.particles
+    pool = pool_signed if signed else pool_occupied
+    half = np.empty((n, (y1 - y0) // 2, (x1 - x0) // 2), dtype=np.int8)
+    quarter = np.empty((n, (y1 - y0) // 4, (x1 - x0) // 4), dtype=np.int8)
+    maps = max(1, POOL_CELLS // ((y1 - y0) * (x1 - x0)))
+    for a in range(0, n, maps):
+        b = min(n, a + maps)
+        pool(grid.crop(y0, y1, x0, x1, a, b), out=(half[a:b], quarter[a:b]))
+    return half, quarter
 
 
 def _prior(poses: NDArray[np.float64], params: MatchParams,

@@ -10,20 +10,23 @@ once per update, only in the window the scans of all particles can reach.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Tuple
 
 import numpy as np
 
 from fastslam.filter.grid import GridMaps
-from fastslam.filter.pooling import POOL
 from fastslam.filter.scratch import scratch
 from fastslam.geometry import cos_sin, transform_points, wrap_angle
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
 
+    Pooled = Tuple[NDArray[np.int8], NDArray[np.int8]]   # (2x2, 4x4 cells)
 
+
+POOL = 4               # coarse level: cells per side of a pooled cell
 SEARCH_MARGIN = 0.5    # [m] beyond the coarse search: the finer stages and ICP move a little further
+POOL_CELLS = 1 << 20   # cells pooled at a time (maps x window): the work arrays stay small
 SEARCH_CELLS = 1 << 16  # candidate end points (particles x turns x end points) searched at a time
 
 
@@ -133,27 +136,56 @@ def _nats(scores: NDArray[np.int64], beams: int) -> NDArray[np.float64]:
     return (scores - top) / top * beams
 
 
+def pool_occupied(level: NDArray[np.int8], above: int = 0, out: Pooled | None = None) -> Pooled:
+    """(N, H, W) -> 0/1 flags (N, H/2, W/2) and (N, H/4, W/4): whether any cell of each
+    2x2 and 4x4 block is occupied (log-odds above `above`; H, W multiples of 4); out:
+    the arrays to write them to.
+
+    Any cell above `above` is the block's maximum above it (see _block_max).
+    """
+    m2 = _block_max(level, "pool2")
+    half, quarter = (None, None) if out is None else (out[0].view(np.bool_), out[1].view(np.bool_))
+    return (np.greater(m2, above, out=half).view(np.int8),
+            np.greater(_block_max(m2, "pool4"), above, out=quarter).view(np.int8))
+
+
+def pool_signed(level: NDArray[np.int8], out: Pooled | None = None) -> Pooled:
+    """(N, H, W) -> (N, H/2, W/2) and (N, H/4, W/4): +1 where any cell of the 2x2 or 4x4
+    block is occupied, -1 where every cell is known free, 0 otherwise (H, W multiples of 4);
+    out: the arrays to write them to.
+
+    An end point on a free block contradicts the map (the beam would have ended
+    there before): summed, these flags score a candidate by the end points it puts on
+    walls less those it puts in free space, which a wrong alignment (a turned copy of
+    a room, the wrong side of a wall) cannot hide. They are the sign of the block's
+    maximum: above 0 if any cell is occupied, below 0 if every cell is free.
+    """
+    m2 = _block_max(level, "pool2")
+    half, quarter = (None, None) if out is None else out
+    return np.sign(m2, out=half), np.sign(_block_max(m2, "pool4"), out=quarter)
+
+
+def _block_max(level: NDArray[np.int8], key: str) -> NDArray[np.int8]:
+    """(k, H, W) -> (k, H/2, W/2) maxima of 2x2 blocks, in a reused work array: row pairs
+    first (whole rows), then the two bytes of each column pair."""
+    k, h, w = level.shape
+    rows = np.maximum(level[:, 0::2, :], level[:, 1::2, :], out=scratch(key + "_rows", (k, h // 2, w), np.int8))
+    pairs = rows.reshape(k, h // 2, w // 2, 2)
+    return np.maximum(pairs[..., 0], pairs[..., 1], out=scratch(key, (k, h // 2, w // 2), np.int8))
+
+
 def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:
     """Cell bounds (x0, y0, x1, y1) of the part of the grid within reach of any pose,
-    with sides a multiple of POOL cells, from a lattice cell that is a multiple of POOL."""
+    with sides a multiple of POOL cells."""
     h, w = grid.shape
     lo = grid.world_to_cell(poses[:, :2].min(axis=0) - reach)
     hi = grid.world_to_cell(poses[:, :2].max(axis=0) + reach) + 1
-    # blocks start on lattice multiples of POOL, as the maps' own pooled tiles do (grid.pooled)
-    oy, ox = grid.offset
-    x0, y0 = (_aligned(max(int(v), 0), o) for v, o in zip(lo, (ox, oy)))
+    x0, y0 = (int(v) for v in np.maximum(lo, 0))
     x1 = min(w, x0 + POOL * math.ceil((int(hi[0]) - x0) / POOL))
     y1 = min(h, y0 + POOL * math.ceil((int(hi[1]) - y0) / POOL))
     x1 = x0 + POOL * ((x1 - x0) // POOL)
     y1 = y0 + POOL * ((y1 - y0) // POOL)
     return x0, y0, x1, y1
-
-
-def _aligned(i: int, offset: int) -> int:
-    """The cell at or below i (at or above, below 0) whose lattice cell i + offset is a
-    multiple of POOL."""
-    a = i - (i + offset) % POOL
-    return a if a >= 0 else a + POOL
 
 
 def search_area(grid: GridMaps, poses: NDArray[np.float64], local: NDArray[np.float64], turn: float,

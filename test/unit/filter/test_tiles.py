@@ -127,13 +127,9 @@ def test_the_pool_grows_in_place_and_keeps_every_tile():
     maps = _tiles(1, (64, 64))
     maps.pool = TilePool(TILE, capacity=16)                    # room for 15 tiles: it must grow
     capacity, memory = maps.pool.capacity, maps.pool._map
-    maps.put(0, [0, 0, 1, 1], [0, 1, 0, 1], -3)
-    assert maps.pooled(0, 64, 0, 64)[0][0, 0, 0] == -1         # the pooled levels exist before the growth
     iy, ix = np.meshgrid(np.arange(0, 64, 4), np.arange(0, 64, 8), indexing="ij")   # one cell in each of 128 tiles
     maps.put(0, iy.ravel(), ix.ravel(), (np.arange(iy.size) % 100 + 1))
     assert maps.pool.capacity > capacity >= 2 and maps.pool.used == 128
-    for got, cropped in zip(maps.pooled(0, 64, 0, 64), GridMaps.pooled(maps, 0, 64, 0, 64)):
-        np.testing.assert_array_equal(got, cropped)
     assert maps.pool._map is memory                            # resized in place: no view of it was alive
     assert maps.values(0, iy.ravel(), ix.ravel()).tolist() == (np.arange(iy.size) % 100 + 1).tolist()
 
@@ -207,41 +203,12 @@ def test_the_ray_tracer_writes_through_either_way_as_into_dense_grids(way, monke
             if maps is dense:
                 want = expected
         np.testing.assert_array_equal(expected, want)
-        # the pooled levels: kept per tile, pooled again where written (window on the lattice), or cropped
-        for box in ((8, 48, 4, 60), (9, 49, 6, 62)):
-            for got, full in zip(tiled.pooled(*box), dense.pooled(*box)):
-                np.testing.assert_array_equal(got, full)
         parent = np.array([0, 0, 1, 3]) if t % 2 else np.arange(4)
         dense.reorder(parent)
         tiled.reorder(parent)
     for i in range(4):
         np.testing.assert_array_equal(tiled.particle_map(i), dense.particle_map(i))
     assert tiled.known_cells().min() > 0
-
-
-def test_pooled_levels_by_hand_follow_writes_copies_and_growth():
-    maps = _tiles(2, (8, 16))                                  # tiles of 4 x 8 cells: 2 x 2 tiles
-    maps.put(0, [0, 0, 1, 1, 2, 3], [0, 1, 0, 1, 5, 6], [-5, -5, -5, -5, 7, -3])
-    half, quarter = maps.pooled(0, 8, 0, 16)
-    assert half.shape == (2, 4, 8) and quarter.shape == (2, 2, 4)
-    # a 2x2 block of four free cells is -1, the block with the wall +1, one free cell among unknown ones 0
-    assert half[0, 0].tolist() == [-1, 0, 0, 0, 0, 0, 0, 0] and half[0, 1].tolist() == [0, 0, 1, 0, 0, 0, 0, 0]
-    assert quarter[0].tolist() == [[0, 1, 0, 0], [0, 0, 0, 0]] and not half[1].any()
-    maps.reorder(np.array([0, 0]))                             # particle 1 shares particle 0's tiles
-    maps.put(1, [2, 5], [4, 12], [6, 4])                       # its own copy of one tile, and a new one
-    half, quarter = maps.pooled(0, 8, 0, 16)
-    assert quarter[0].tolist() == [[0, 1, 0, 0], [0, 0, 0, 0]]            # the other's levels kept
-    assert quarter[1].tolist() == [[0, 1, 0, 0], [0, 0, 0, 1]] and half[1, 1, 2:4].tolist() == [1, 0]
-    maps.put(1, [2, 2, 3, 3], [4, 5, 4, 5], -2)                # both walls cleared: a free block
-    half, quarter = maps.pooled(0, 8, 0, 16)
-    assert quarter[1].tolist() == [[0, 0, 0, 0], [0, 0, 0, 1]] and half[1, 1, 2:4].tolist() == [-1, 0]
-    assert quarter[0].tolist() == [[0, 1, 0, 0], [0, 0, 0, 0]]
-    maps.grow_to(-2.0, -1.0, 16.0, 8.0, fraction=0.0)         # 2 columns left, 1 row below: offset (3, 6)
-    assert maps.offset == (3, 6)
-    half, quarter = maps.pooled(1, 9, 2, 18)                   # the old cells, from lattice cells 4 and 8
-    assert quarter[1].tolist() == [[0, 0, 0, 0], [0, 0, 0, 1]] and half[1, 1, 2:4].tolist() == [-1, 0]
-    with pytest.raises(ValueError, match="multiples of 4"):
-        maps.pooled(1, 9, 2, 16 + 3)
 
 
 def test_a_patch_that_changes_nothing_allocates_nothing():

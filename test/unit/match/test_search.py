@@ -6,9 +6,7 @@ import numpy as np
 import pytest
 
 from fastslam.filter.grid import GridMaps
-from fastslam.filter.pooling import POOL, pool_occupied, pool_signed
-from fastslam.filter.tiles import TileMaps
-from fastslam.match.search import _nats, grid_search, pick, search_area, window
+from fastslam.match.search import POOL, _nats, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 
 def test_pooled_flags_mark_blocks_with_an_occupied_cell():
@@ -109,24 +107,12 @@ def test_search_gain_weighs_end_points_against_the_prior():
 
 def test_window_is_the_reach_of_the_poses_in_pooled_cells():
     grid = GridMaps(1, (40, 40), 0.25, (0.0, 0.0))
-    # (2, 2) +- 0.5 m: cells 6 .. 10, from the lattice multiple of POOL below (4) in sides of POOL cells
-    assert window(grid, np.array([[2.0, 2.0, 0.0]]), 0.5) == (4, 4, 12, 12)
+    # (2, 2) +- 0.5 m: cells 6 .. 10, rounded up to sides of POOL cells from cell 6
+    assert window(grid, np.array([[2.0, 2.0, 0.0]]), 0.5) == (6, 6, 14, 14)
     # at the edge the window is clipped to the grid, still a multiple of POOL
     x0, y0, x1, y1 = window(grid, np.array([[9.5, 0.25, 0.0]]), 0.5)
     assert (x0, y0, x1, y1) == (36, 0, 40, 4)
     assert (x1 - x0) % POOL == 0 and (y1 - y0) % POOL == 0
-
-
-def test_window_starts_on_the_lattice_of_tiled_maps():
-    grid = TileMaps(1, (40, 40), 0.25, (0.0, 0.0), tile=(16, 16))
-    grid.grow_to(-0.75, -0.5, 9.0, 9.0, fraction=0.0)     # 3 cells added left, 2 below
-    assert grid.offset == (14, 13)
-    # (2, 2) +- 0.5 m: cells 9 .. 13 and 8 .. 12 of the grown grid; lattice cells 9 + 13 = 22 and
-    # 8 + 14 = 22 round down to 20: cells 7 and 6
-    x0, y0, x1, y1 = window(grid, np.array([[2.0, 2.0, 0.0]]), 0.5)
-    assert (x0, y0) == (7, 6) and (x1, y1) == (15, 14)
-    # at the grid's edge the first lattice multiple inside: cell 0 is lattice 13 and 14
-    assert window(grid, np.array([[-0.5, -0.5, 0.0]]), 0.5)[:2] == (3, 2)
 
 
 def test_search_area_keeps_the_windows_alignment():

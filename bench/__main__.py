@@ -19,12 +19,15 @@ import argparse
 import importlib
 import sys
 
+from fastslam.cli import closed_output_ends_quietly
+
 SUITES = {"speed": ("bench.speed", []), "memory": ("bench.memory", ["--dense"]), "intel": ("bench.modes", []),
           "office": ("bench.modes", ["--office"]), "matcher": ("bench.matcher", None),
           "longrun": ("bench.longrun", []), "accuracy": ("bench.accuracy", []),
           "messages": ("bench.messages", []), "soak": ("bench.soak", [])}
 
 
+@closed_output_ends_quietly
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="make bench", description=__doc__.splitlines()[0])
     parser.add_argument("suites", nargs="*", default=list(SUITES), choices=list(SUITES), metavar="SUITE",

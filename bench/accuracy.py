@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import ROOT, data_path, progress
+from fastslam.cli import closed_output_ends_quietly
 from fastslam.eval.trajectory import ate, match_by_time, relations_score
 from fastslam.io.trajectory_files import read_relations, read_trajectory
 
@@ -221,6 +222,7 @@ def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], 
     return rows
 
 
+@closed_output_ends_quietly
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--config", default=str(ROOT / "config" / "real.yaml"))

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.accuracy import CORRECTED, REAL, TARGET_ATE_MEDIAN, TARGET_ATE_WORST, TARGET_REL, TARGET_REL_MAX
+from fastslam.cli import closed_output_ends_quietly
 
 DRAWS = 20000          # random splits when there are more than this many
 
@@ -104,6 +105,7 @@ def table(lines: list[dict]) -> str:
     return "\n".join(text)
 
 
+@closed_output_ends_quietly
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--before", nargs="+", required=True, metavar="JSON")

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from tqdm import tqdm
 
+from fastslam.cli import closed_output_ends_quietly
 from fastslam.eval.trajectory import ate
 from fastslam.io.bag_writer import BagWriter
 from fastslam.io.carmen_log import CarmenError, CarmenLog, read_log
@@ -132,6 +133,7 @@ def convert(log: CarmenLog, out: str | os.PathLike[str], *, odom_noise: float = 
                       truth=truth, odometry=odometry)
 
 
+@closed_output_ends_quietly
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m fastslam.carmen_to_bag", description=__doc__.split("\n")[0])
     ap.add_argument("log", help="CARMEN log, plain or gzip")

@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fastslam.cli import closed_output_ends_quietly
 from fastslam.eval.trajectory import RelationScores, TrajectoryScores, relations_score, score, worst_relations
 from fastslam.io.trajectory_files import TrajectoryError, read_relations, read_trajectory
 
@@ -59,6 +60,7 @@ def format_worst(rows: NDArray[np.float64]) -> str:
         for t1, t2, length, trans, rot, speed in rows])
 
 
+@closed_output_ends_quietly
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m fastslam.evaluate", description=__doc__.split("\n\n")[0])
     ap.add_argument("files", nargs="+", metavar="REFERENCE ESTIMATE",

@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 from tqdm import tqdm
 
+from fastslam.cli import closed_output_ends_quietly
 from fastslam.config import ConfigError, SlamConfig, parse_override
 from fastslam.eval.render import ESTIMATE_RGB, TRUTH_RGB, map_picture, write_png
 from fastslam.eval.trajectory import align_2d, apply_alignment, match_by_time, score
@@ -301,6 +302,7 @@ def load_reference(data: BagData, bag: str, path: str | None) -> Reference | Non
     return None
 
 
+@closed_output_ends_quietly
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m fastslam.offline", description=__doc__.split("\n\n")[0])
     parser.add_argument("bag", help="ROS 1 bag with LaserScan and Odometry (and tf)")

@@ -3,6 +3,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -166,3 +169,20 @@ def test_plot_is_refused_with_relations(tmp_path, capsys):
     with pytest.raises(SystemExit):
         evaluate.main(["--relations", "r.txt", "e.txt", "--plot", str(tmp_path / "p.png")])
     assert "--plot" in capsys.readouterr().err and not (tmp_path / "p.png").exists()
+
+
+def test_a_reader_closing_the_output_early_gets_one_line_not_a_traceback(tmp_path):
+    # `evaluate ... | head`: the pipe is closed before the tool writes its table
+    t = np.arange(2000.0)
+    poses = np.stack([t * 0.1, np.zeros_like(t), np.zeros_like(t)], axis=1)
+    write_trajectory(tmp_path / "ref.txt", t, poses)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    read, write = os.pipe()
+    os.close(read)
+    with open(write, "wb") as closed:
+        done = subprocess.run([sys.executable, "-m", "fastslam.evaluate", str(tmp_path / "ref.txt"),
+                               str(tmp_path / "ref.txt")], stdout=closed, stderr=subprocess.PIPE, env=env,
+                              timeout=120, check=False)
+    err = done.stderr.decode().strip().splitlines()
+    assert done.returncode == 1
+    assert err == ["evaluate.py: output closed by its reader; stopped"]

@@ -174,6 +174,11 @@ class SlamConfig:
                                          "the whole matcher (window round the prediction, then ICP)")
     track_beams: int = _num(60, 4, 10000, "track_scans: match with at most this many returns, evenly spread (one "
                             "map: more end points cost little and sharpen the pose)")
+    odom_scale: bool = field(default=False, metadata={
+        "doc": "proposal: scan_match with match_refine: icp: learn how far the odometry misreads travel from the "
+               "matches (where the scan pins the motion down) and move the particles by the odometry so scaled"})
+    odom_scale_prior: float = _num(20.0, 0.0, 1e6, "odom_scale: odometry travel at scale 1 the estimate starts "
+                                   "from [m]")
     # Update gating (improved mode); zeros process every scan as the assignment does
     linear_update: float = _num(0.0, 0.0, 100.0, "process a scan after this much travel [m]")
     angular_update: float = _num(0.0, 0.0, 2 * math.pi, "... or this much rotation [rad]")
@@ -206,6 +211,10 @@ class SlamConfig:
                               "match_prior=motion (the prior it integrates)")
         if self.match_spread == "match" and self.match_refine != "icp":
             raise ConfigError("match_spread=match needs match_refine=icp (the hill climb has no covariance)")
+        if self.odom_scale and (self.proposal != "scan_match" or self.match_refine != "icp"
+                                or self.match_prior != "motion"):
+            raise ConfigError("odom_scale needs proposal=scan_match, match_refine=icp and match_prior=motion (it "
+                              "weighs the matches by the ICP's information against the motion prior)")
         for name in ("map_width", "map_height"):
             if getattr(self, name) < 4 * self.map_resolution:
                 raise ConfigError(f"{name}={getattr(self, name)} must be at least 4 cells of map_resolution")

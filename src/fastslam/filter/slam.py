@@ -19,7 +19,8 @@ from fastslam.filter.best import pairwise_distances, weighted_medoid
 from fastslam.filter.budget import Limits
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
-from fastslam.filter.motion import odometry_std, sample_motion_assignment, sample_motion_odometry
+from fastslam.filter.motion import odometry_std, odometry_step, sample_motion_assignment, sample_motion_odometry
+from fastslam.filter.odom_scale import OdometryScale
 from fastslam.filter.proposal import (
     fuse_with_motion,
     gate_match,
@@ -35,7 +36,7 @@ from fastslam.filter.weights import assignment_log_weights, endpoint_distances, 
 from fastslam.geometry import cholesky3, circular_mean, compose, relative, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses, refine_poses
 from fastslam.match.matcher import PRIOR_FLOOR
-from fastslam.match.refine import ICP_SIGMA
+from fastslam.match.refine import ICP_SIGMA, prior_information
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -110,6 +111,8 @@ class FastSlam:
         self.beyond_gate = 0  # updates where a match beyond match_gate was trusted for its score
         self.loops = 0        # updates where match_loop moved particles to a place found again
         self.trace: Callable[[UpdateTrace], None] | None = None   # called after each update (diagnostics)
+        # odom_scale: the odometry's scale, learnt from the matches; kept through reset() (same wheels)
+        self.odom_scale = OdometryScale(cfg.odom_scale_prior) if cfg.odom_scale else None
         self.reset()
 
     def reset(self) -> None:
@@ -123,6 +126,8 @@ class FastSlam:
         self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)
         self._match_params = MatchParams.from_config(cfg)
         self._track_params = replace(self._match_params, beams=cfg.track_beams)   # track_scans' matches
+        self._raw_travel = 0.0   # odom_scale: the last step's travel as measured, the particles before it
+        self._before: NDArray[np.float64] | None = None
         self.poses = np.zeros((n, 3))
         spread = np.array([cfg.init_sigma_xy, cfg.init_sigma_xy, cfg.init_sigma_theta])
         if np.any(spread > 0):
@@ -239,20 +244,25 @@ class FastSlam:
     def _move(self, odom: NDArray[np.float64]) -> None:
         cfg = self.cfg
         assert self._odom is not None
+        moved = odom   # the odometry pose the particles move to: scaled (odom_scale) or as measured
+        if self.odom_scale is not None:
+            self._raw_travel = odometry_step(self._odom, odom)[0]
+            self._before = self.poses.copy()
+            moved = self.odom_scale.corrected(self._odom, odom)
         if cfg.proposal == "scan_match" and cfg.match_prior == "motion":
             # The matcher's prior: the noise-free prediction and its spread (no random draw).
             self._predicted = self.poses.copy()
-            self._apply_motion(self._predicted, odom, noise=False)
+            self._apply_motion(self._predicted, moved, noise=False)
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
-                                else odometry_std(self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
+                                else odometry_std(self._odom, moved, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
         self._path_predicted = None
         if cfg.path_match_scale > 0 and cfg.proposal == "scan_match" and self.history.latest is not None:
             if cfg.track_scans:   # the scans' motion since the last update: real odometry jitters by degrees
                 self._path_predicted = compose(self.history.latest, self._tracked_motion(odom))
             else:
                 self._path_predicted = self.history.latest.copy()
-                self._apply_motion(self._path_predicted, odom, noise=False)
-        self._apply_motion(self.poses, odom, noise=bool(cfg.toggle_noise))
+                self._apply_motion(self._path_predicted, moved, noise=False)
+        self._apply_motion(self.poses, moved, noise=bool(cfg.toggle_noise))
 
     def _tracked_motion(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
         """(3,) the live pose's motion from the last update to this scan: matched at the
@@ -361,6 +371,8 @@ class FastSlam:
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
         match = self._match_gated(beams, self._motion_std)
+        if self.odom_scale is not None:
+            self._learn_scale(match)
         if self.cfg.match_loop > 0 and self.updates > 1:     # (after one scan nothing was seen long ago)
             match = self._loop(beams, match)
         if not match.trusted.any() and self.cfg.match_recover > 0:
@@ -373,6 +385,15 @@ class FastSlam:
         else:   # nothing to correct them (path_match_scale): the paths follow their motion, not the noisy particles
             self._path_next = self._path_predicted
         return int(match.trusted.sum())
+
+    def _learn_scale(self, match: Match) -> None:
+        """odom_scale: the step's trusted matches within the gate (a match beyond it found
+        a place again: not motion) tell the odometry's scale where their scans pin it down."""
+        assert self.odom_scale is not None and self._before is not None and match.scan_information is not None
+        ok = match.trusted if match.beyond_gate is None else match.trusted & ~match.beyond_gate
+        spread = np.maximum(motion_spread(self.cfg, self._motion_std), PRIOR_FLOOR)   # the matcher's prior
+        self.odom_scale.observe(self._raw_travel, self._before[ok], match.poses[ok], match.scan_information[ok],
+                                prior_information(self._predicted[ok], spread))
 
     def _log_w_step(self, before: NDArray[np.float64]) -> NDArray[np.float64]:
         """(N,) what _observe added to the log-weights (it shifts them to a maximum of 0)."""

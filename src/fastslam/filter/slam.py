@@ -389,7 +389,9 @@ class FastSlam:
     def _learn_scale(self, match: Match) -> None:
         """odom_scale: the step's trusted matches within the gate (a match beyond it found
         a place again: not motion) tell the odometry's scale where their scans pin it down."""
-        assert self.odom_scale is not None and self._before is not None and match.scan_information is not None
+        assert self.odom_scale is not None and self._before is not None
+        if match.scan_information is None:   # nothing matched (too few returns)
+            return
         ok = match.trusted if match.beyond_gate is None else match.trusted & ~match.beyond_gate
         spread = np.maximum(motion_spread(self.cfg, self._motion_std), PRIOR_FLOOR)   # the matcher's prior
         self.odom_scale.observe(self._raw_travel, self._before[ok], match.poses[ok], match.scan_information[ok],

@@ -90,3 +90,16 @@ def test_the_filter_learns_the_scale_of_its_odometry_in_the_pillar_room(loop, ro
         slam.step(o, Scan(ranges=ranges, angles=ANGLES, range_min=0.12, range_max=3.5, stamp=0.2 * t))
     assert slam.odom_scale is not None and slam.odom_scale.steps > 40
     assert slam.odom_scale.travel == pytest.approx(1 / travel, abs=0.01)
+
+
+def test_a_scan_with_too_few_returns_to_match_teaches_nothing_and_breaks_nothing(room_ranges):
+    cfg = SlamConfig(particles=3, seed=0, motion_model="odometry", weight_model="likelihood", proposal="scan_match",
+                     match_prior="motion", match_refine="icp", odom_scale=True, odom_scale_prior=0.0)
+    slam = FastSlam(cfg)
+    pose = np.zeros(3)
+    slam.step(pose, Scan(ranges=room_ranges(pose, ANGLES), angles=ANGLES, range_min=0.12, range_max=3.5, stamp=0.0))
+    few = np.full(len(ANGLES), np.inf)
+    few[:5] = 1.0                                                       # 5 returns: nothing to match
+    moved = np.array([0.3, 0.0, 0.0])
+    assert slam.step(moved, Scan(ranges=few, angles=ANGLES, range_min=0.12, range_max=3.5, stamp=0.2)).processed
+    assert slam.odom_scale is not None and slam.odom_scale.steps == 0 and slam.odom_scale.travel == 1.0

@@ -386,6 +386,10 @@ class FastSlam:
             self._path_next = self._path_predicted
         return int(match.trusted.sum())
 
+    def _matcher_spread(self) -> NDArray[np.float64]:
+        """(3,) std-devs of the prior the matcher used this update (as its _prior floors them)."""
+        return np.maximum(motion_spread(self.cfg, self._motion_std), PRIOR_FLOOR)
+
     def _learn_scale(self, match: Match) -> None:
         """odom_scale: the step's trusted matches within the gate (a match beyond it found
         a place again: not motion) tell the odometry's scale where their scans pin it down."""
@@ -393,7 +397,7 @@ class FastSlam:
         if match.scan_information is None:   # nothing matched (too few returns)
             return
         ok = match.trusted if match.beyond_gate is None else match.trusted & ~match.beyond_gate
-        spread = np.maximum(motion_spread(self.cfg, self._motion_std), PRIOR_FLOOR)   # the matcher's prior
+        spread = self._matcher_spread()
         self.odom_scale.observe(self._raw_travel, self._before[ok], match.poses[ok], match.scan_information[ok],
                                 prior_information(self._predicted[ok], spread))
 
@@ -522,7 +526,7 @@ class FastSlam:
         assert match.scan_information is not None
         scale = (cfg.likelihood_gain * points / max(match.icp_points, 1)
                  * (ICP_SIGMA / cfg.likelihood_sigma) ** 2)
-        spread = np.maximum(motion_spread(cfg, self._motion_std), PRIOR_FLOOR)   # the matcher's prior
+        spread = self._matcher_spread()
         terms = normaliser_log_terms(match.poses, self._predicted, spread, scale * match.scan_information)
         return np.where(match.trusted, terms, 0.0)
 

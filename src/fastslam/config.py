@@ -138,6 +138,10 @@ class SlamConfig:
     match_floor_xy: float = _num(0.025, 0.0, 10.0, "match_prior: motion: least std-dev along and across of the "
                                  "matcher's odometry prior, window and gate (odometry jitter) [m]")
     match_floor_theta: float = _num(0.01, 0.0, math.pi, "... and of the heading [rad]")
+    match_prior_arc: float = _num(0.0, 0.0, 100.0, "match_prior: motion, motion_model: odometry: for a step of at "
+                                  "least this much travel [m], the searches' prior and the gate take the odometry "
+                                  "model in its own terms (rot1, trans, rot2: an arc for a long step turned wrong), "
+                                  "not a Gaussian along and across the predicted heading; 0 = off")
     match_good_score: float = _num(1.0, 0.0, 1.0, "a match with at least this share of its end points on "
                                    "occupied cells is not held to match_gate")
     match_window: float = _num(0.0, 0.0, 100.0, "match_prior: motion: search half-widths of this many std-devs of "

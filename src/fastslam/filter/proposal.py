@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any, Tuple
 import numpy as np
 
 from fastslam.config import SlamConfig
+from fastslam.filter.motion import OdometryArc, odometry_arc
 from fastslam.geometry import cos_sin, inv3, solve3, wrap_angle
 from fastslam.match import Match, MatchParams
 from fastslam.match.refine import prior_information
@@ -26,6 +27,18 @@ def motion_spread(cfg: SlamConfig, motion_std: NDArray[np.float64]) -> NDArray[n
     """(3,) std-devs along, across and of the heading of the step's motion model, at
     least match_floor_xy / match_floor_theta (odometry jitters even between close scans)."""
     return np.maximum(motion_std, [cfg.match_floor_xy, cfg.match_floor_xy, cfg.match_floor_theta])
+
+
+def motion_arc(cfg: SlamConfig, prev_odom: NDArray[np.float64], odom: NDArray[np.float64]) -> OdometryArc | None:
+    """The step's odometry model in its own terms for the search's prior and the gate
+    (match_prior_arc), floored as motion_spread; None for a step shorter than
+    match_prior_arc, whose first turn the odometry hardly knows, or when off."""
+    if cfg.match_prior_arc <= 0 or cfg.match_prior != "motion" or cfg.motion_model != "odometry":
+        return None
+    if float(np.hypot(*(odom[:2] - prev_odom[:2]))) < cfg.match_prior_arc:
+        return None
+    return odometry_arc(prev_odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt), cfg.match_floor_xy,
+                        cfg.match_floor_theta)
 
 
 def match_request(cfg: SlamConfig, params: MatchParams, samples: NDArray[np.float64],
@@ -51,9 +64,13 @@ def match_request(cfg: SlamConfig, params: MatchParams, samples: NDArray[np.floa
 
 
 def within_motion(poses: NDArray[np.float64], predicted: NDArray[np.float64], std: NDArray[np.float64],
-                  gate: float) -> NDArray[np.bool_]:
+                  gate: float, arc: OdometryArc | None = None) -> NDArray[np.bool_]:
     """(N,) whether each pose (N, 3) lies within gate std-devs std (3,) (along and across
-    the predicted heading, heading) of its prediction (N, 3), as a Mahalanobis distance."""
+    the predicted heading, heading) of its prediction (N, 3), as a Mahalanobis distance;
+    arc: in the step's own terms instead."""
+    if arc is not None:
+        return np.asarray(arc.cost(poses[:, 0], poses[:, 1], poses[:, 2], predicted[:, 0], predicted[:, 1],
+                                   predicted[:, 2]) <= gate ** 2)
     c, s = cos_sin(predicted[:, 2])
     dx, dy = poses[:, 0] - predicted[:, 0], poses[:, 1] - predicted[:, 1]
     along, across = c * dx + s * dy, c * dy - s * dx
@@ -63,16 +80,17 @@ def within_motion(poses: NDArray[np.float64], predicted: NDArray[np.float64], st
 
 
 def gate_match(cfg: SlamConfig, match: Match, predicted: NDArray[np.float64],
-               motion_std: NDArray[np.float64]) -> Match:
+               motion_std: NDArray[np.float64], arc: OdometryArc | None = None) -> Match:
     """The match with the trust of those that moved a particle further from its motion
     prediction than match_gate std-devs withdrawn, unless match_good_score of their end
     points lie on occupied cells: a poor or ambiguous match (a turned copy of a room, the
     wrong corridor) explains the scan by a motion the odometry makes implausible, and
-    the particle keeps its motion sample; a good one may correct a wheel slip."""
+    the particle keeps its motion sample; a good one may correct a wheel slip. arc: the
+    step's odometry model in its own terms (match_prior_arc), measured in those."""
     if cfg.match_gate <= 0 or match.score is None:
         return match
     good = match.score >= cfg.match_good_score
-    near = within_motion(match.poses, predicted, motion_spread(cfg, motion_std), cfg.match_gate)
+    near = within_motion(match.poses, predicted, motion_spread(cfg, motion_std), cfg.match_gate, arc)
     return replace(match, trusted=match.trusted & (good | near), beyond_gate=match.trusted & good & ~near)
 
 

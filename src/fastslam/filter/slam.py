@@ -19,12 +19,19 @@ from fastslam.filter.best import pairwise_distances, weighted_medoid
 from fastslam.filter.budget import Limits
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
-from fastslam.filter.motion import odometry_std, odometry_step, sample_motion_assignment, sample_motion_odometry
+from fastslam.filter.motion import (
+    OdometryArc,
+    odometry_std,
+    odometry_step,
+    sample_motion_assignment,
+    sample_motion_odometry,
+)
 from fastslam.filter.odom_scale import OdometryScale
 from fastslam.filter.proposal import (
     fuse_with_motion,
     gate_match,
     match_request,
+    motion_arc,
     motion_spread,
     normaliser_log_terms,
     taken,
@@ -139,6 +146,7 @@ class FastSlam:
         self._odom: NDArray[np.float64] | None = None
         self._predicted = self.poses.copy()          # noise-free motion of the last update
         self._motion_std = np.zeros(3)               # and its spread (match_prior: motion)
+        self._arc: OdometryArc | None = None         # and the step in its own terms (match_prior_arc)
         self._stamp = -np.inf
         self._refused = False  # a growth was refused in this life (reported once)
         self.history = History()
@@ -255,6 +263,7 @@ class FastSlam:
             self._apply_motion(self._predicted, moved, noise=False)
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, moved, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
+            self._arc = motion_arc(cfg, self._odom, moved)
         self._path_predicted = None
         if cfg.path_match_scale > 0 and cfg.proposal == "scan_match" and self.history.latest is not None:
             if cfg.track_scans:   # the scans' motion since the last update: real odometry jitters by degrees
@@ -370,7 +379,7 @@ class FastSlam:
 
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
-        match = self._match_gated(beams, self._motion_std)
+        match = self._match_gated(beams, self._motion_std, self._arc)
         if self.odom_scale is not None:
             self._learn_scale(match)
         if self.cfg.match_loop > 0 and self.updates > 1:     # (after one scan nothing was seen long ago)
@@ -411,7 +420,8 @@ class FastSlam:
         returning to a place seen long ago): one wider search, match_recover times the
         motion model, trusting only the matches that explain the scan well, and only when
         at least match_recover_share of the particles find one."""
-        match = self._match_gated(beams, self._motion_std * self.cfg.match_recover)
+        arc = None if self._arc is None else self._arc.widened(self.cfg.match_recover)
+        match = self._match_gated(beams, self._motion_std * self.cfg.match_recover, arc)
         good = match.trusted if match.score is None else match.trusted & (match.score >= self.cfg.match_recover_score)
         if good.mean() < self.cfg.match_recover_share:
             good = np.zeros_like(good)  # a few particles' maps only: an ambiguity, not a place found again
@@ -448,14 +458,14 @@ class FastSlam:
         predicted = self._predicted[first:stop]
         spread = np.array([cfg.match_loop_xy, cfg.match_loop_xy, cfg.match_loop_theta])
         match = match_poses(self.grid.view(first, stop), predicted, beams, params, prior=(predicted, spread))
-        return gate_match(cfg, match, predicted, self._motion_std)
+        return gate_match(cfg, match, predicted, self._motion_std, self._arc)
 
-    def _match_gated(self, beams: Beams, motion_std: NDArray[np.float64]) -> Match:
-        """Every particle's match in the window and prior of motion_std round its
-        prediction, held to the gate of the same std-devs."""
+    def _match_gated(self, beams: Beams, motion_std: NDArray[np.float64], arc: OdometryArc | None) -> Match:
+        """Every particle's match in the window and prior of motion_std (or the step's
+        arc) round its prediction, held to the gate of the same std-devs."""
         start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted, motion_std)
-        match = match_poses(self.grid, start, beams, params, prior=prior)
-        return gate_match(self.cfg, match, self._predicted, motion_std)
+        match = match_poses(self.grid, start, beams, params, prior=prior, arc=arc)
+        return gate_match(self.cfg, match, self._predicted, motion_std, arc)
 
     def _sample_around(self, match: Match) -> None:
         """Trusted particles take a sample around their match: with the match's covariance,

@@ -39,6 +39,8 @@ from fastslam.match.search import POOL, POOL_CELLS, grid_search, pick, pool_occu
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
 
+    from fastslam.filter.motion import OdometryArc
+
 
 MIN_BEAMS = 10         # fewer returns than this: nothing to match
 # The motion prior never gets narrower than this: odometry of a standing robot still
@@ -105,11 +107,14 @@ class Match:
 
 
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
-                prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> Match:
+                prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+                arc: OdometryArc | None = None) -> Match:
     """Matches the beams of one scan from each pose (N, 3) against that particle's map.
 
     prior: (centre (N, 3), std-devs (3,) along, across, heading) of the odometry prior;
-    None: centred on poses with half the search window as std-devs.
+    None: centred on poses with half the search window as std-devs. arc: the searches
+    weigh candidates by the step's odometry model in its own terms about the centre
+    instead (the ICP keeps the Gaussian: it starts from the searches' pick).
     """
     n = len(poses)
     nothing = Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
@@ -136,7 +141,7 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     # large building would otherwise take tens of MB.
     size = max(1, MATCH_BYTES // ((x1 - x0) * (y1 - y0) * 5 // 16))     # pooled maps (half, quarter) per particle
     found = [_match_some(grid.view(a, min(n, a + size)), poses[a:a + size], centre[a:a + size], spread, local,
-                         icp_points, (x0, y0, x1, y1), k0, ka, dth, params)
+                         icp_points, (x0, y0, x1, y1), k0, ka, dth, params, arc)
              for a in range(0, n, size)]
     pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
     cov, info, free = (None if found[0][i] is None else np.concatenate([f[i] for f in found]) for i in (2, 4, 5))
@@ -166,7 +171,7 @@ def far_range(local: NDArray[np.float64]) -> float:
 def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.float64], spread: NDArray[np.float64],
                 local: NDArray[np.float64], icp_points: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
                 box: tuple[int, int, int, int],
-                k0: int, ka: int, dth: float, params: MatchParams
+                k0: int, ka: int, dth: float, params: MatchParams, arc: OdometryArc | None
                 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.float64],
                            NDArray[np.float64] | None, NDArray[np.float64] | None]:
     """match_poses for the particles of grid (a view): (poses, trusted, covariance, score,
@@ -181,14 +186,14 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     # 1. coarse: wide window on 4x4 cells
     turns = np.arange(-ka, ka + 1) * dth
     pose = pick(grid_search(quarter, w_origin, coarse, poses, turns, local, k0, flags=True),
-                poses, turns, k0, coarse, centre, spread, m, params.search_gain)
+                poses, turns, k0, coarse, centre, spread, m, params.search_gain, arc)
     # 2. the best coarse cell again on 2x2 cells, then on the map's own cells
     turns = np.array([-0.5, 0.0, 0.5]) * dth
     pose = pick(grid_search(half, w_origin, 2 * res, pose, turns, local, 2, flags=True),
-                pose, turns, 2, 2 * res, centre, spread, m, params.search_gain)
+                pose, turns, 2, 2 * res, centre, spread, m, params.search_gain, arc)
     turns = np.array([-0.25, 0.0, 0.25]) * dth
     scores = grid_search(grid, grid.origin, res, pose, turns, local, 1)
-    pose = pick(scores, pose, turns, 1, res, centre, spread, m, params.search_gain)
+    pose = pick(scores, pose, turns, 1, res, centre, spread, m, params.search_gain, arc)
     # 3. finer than a cell
     cov = scan_info = None
     if icp_points is not None:

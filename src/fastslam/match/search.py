@@ -21,6 +21,8 @@ from fastslam.geometry import cos_sin, transform_points, wrap_angle
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
 
+    from fastslam.filter.motion import OdometryArc
+
     Pooled = Tuple[NDArray[np.int8], NDArray[np.int8]]   # (2x2, 4x4 cells)
 
 
@@ -93,7 +95,7 @@ def grid_search(level: NDArray[np.int8] | GridMaps, origin: NDArray[np.float64],
 
 def pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[np.float64],
           k: int, cell: float, start: NDArray[np.float64], prior: NDArray[np.float64], beams: int,
-          gain: float = 1.0) -> NDArray[np.float64]:
+          gain: float = 1.0, arc: OdometryArc | None = None) -> NDArray[np.float64]:
     """Best candidate of each particle as a pose (N, 3).
 
     Scores become log-likelihoods as in _nats; the odometry prediction `start` (N, 3)
@@ -101,19 +103,24 @@ def pick(scores: NDArray[np.int64], poses: NDArray[np.float64], turns: NDArray[n
     the heading, so that along a corridor, where the scan cannot tell, the particle
     stays where odometry put it. gain scales the scores' nats: neighbouring returns on
     one wall are not independent, and counting each as a whole nat lets two more end
-    points on a half-mapped wall outweigh a shift of two std-devs of the prior.
+    points on a half-mapped wall outweigh a shift of two std-devs of the prior. arc: the
+    step's odometry model in its own terms instead of that Gaussian (match_prior_arc).
     """
     n, a, t = scores.shape
     d = np.arange(-k, k + 1)
     ox = (poses[:, 0] - start[:, 0])[:, None] + np.tile(d, 2 * k + 1)[None, :] * cell   # (N, T)
     oy = (poses[:, 1] - start[:, 1])[:, None] + np.repeat(d, 2 * k + 1)[None, :] * cell
     oa = wrap_angle(poses[:, 2] - start[:, 2])[:, None] + turns[None, :]                # (N, A)
-    along, across = ox, oy  # an isotropic prior needs no turning
-    if prior[0] != prior[1]:
-        c, s_ = cos_sin(start[:, 2, None])
-        along, across = c * ox + s_ * oy, c * oy - s_ * ox                               # start's frame
-    log_prior = -0.5 * (((along / prior[0]) ** 2 + (across / prior[1]) ** 2)[:, None, :]
-                        + ((oa / prior[2]) ** 2)[:, :, None])
+    if arc is not None:
+        px, py, ph = (start[:, i, None, None] for i in range(3))                         # (N, 1, 1)
+        log_prior = -0.5 * arc.cost(px + ox[:, None, :], py + oy[:, None, :], ph + oa[:, :, None], px, py, ph)
+    else:
+        along, across = ox, oy  # an isotropic prior needs no turning
+        if prior[0] != prior[1]:
+            c, s_ = cos_sin(start[:, 2, None])
+            along, across = c * ox + s_ * oy, c * oy - s_ * ox                           # start's frame
+        log_prior = -0.5 * (((along / prior[0]) ** 2 + (across / prior[1]) ** 2)[:, None, :]
+                            + ((oa / prior[2]) ** 2)[:, :, None])
     s = gain * _nats(scores, beams) + log_prior
     best = s.reshape(n, -1).argmax(axis=1)
     ia, it = np.divmod(best, t)

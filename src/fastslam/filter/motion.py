@@ -75,7 +75,7 @@ class OdometryArc(NamedTuple):
     rot2) and their std-devs. A long step turned by a wrong first turn ends on an arc
     round its start; a Gaussian along and across the predicted heading puts that arc's
     far end several std-devs out (orebro: a 3 m step turned 65 degrees wrong, 1.8
-    std-devs in these terms, lay 4.9 along and across)."""
+    std-devs in these terms, lay 4.8 along and across)."""
     rot1: float
     trans: float    # negative: reversing
     rot2: float

@@ -379,7 +379,7 @@ class FastSlam:
 
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
-        match = self._match_gated(beams, self._motion_std, self._arc)
+        match = self._match_gated(beams)
         if self.odom_scale is not None:
             self._learn_scale(match)
         if self.cfg.match_loop > 0 and self.updates > 1:     # (after one scan nothing was seen long ago)
@@ -420,8 +420,7 @@ class FastSlam:
         returning to a place seen long ago): one wider search, match_recover times the
         motion model, trusting only the matches that explain the scan well, and only when
         at least match_recover_share of the particles find one."""
-        arc = None if self._arc is None else self._arc.widened(self.cfg.match_recover)
-        match = self._match_gated(beams, self._motion_std * self.cfg.match_recover, arc)
+        match = self._match_gated(beams, wider=self.cfg.match_recover)
         good = match.trusted if match.score is None else match.trusted & (match.score >= self.cfg.match_recover_score)
         if good.mean() < self.cfg.match_recover_share:
             good = np.zeros_like(good)  # a few particles' maps only: an ambiguity, not a place found again
@@ -460,9 +459,12 @@ class FastSlam:
         match = match_poses(self.grid.view(first, stop), predicted, beams, params, prior=(predicted, spread))
         return gate_match(cfg, match, predicted, self._motion_std, self._arc)
 
-    def _match_gated(self, beams: Beams, motion_std: NDArray[np.float64], arc: OdometryArc | None) -> Match:
-        """Every particle's match in the window and prior of motion_std (or the step's
-        arc) round its prediction, held to the gate of the same std-devs."""
+    def _match_gated(self, beams: Beams, wider: float = 1.0) -> Match:
+        """Every particle's match in the window and prior of the step's motion model (its
+        Gaussian, or its arc: match_prior_arc), wider times as wide, round its prediction,
+        held to the gate of the same std-devs."""
+        motion_std = self._motion_std * wider
+        arc = None if self._arc is None else self._arc.widened(wider)
         start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted, motion_std)
         match = match_poses(self.grid, start, beams, params, prior=prior, arc=arc)
         return gate_match(self.cfg, match, self._predicted, motion_std, arc)

@@ -142,6 +142,10 @@ class SlamConfig:
                                   "least this much travel [m], the searches' prior and the gate take the odometry "
                                   "model in its own terms (rot1, trans, rot2: an arc for a long step turned wrong), "
                                   "not a Gaussian along and across the predicted heading; 0 = off")
+    match_prior_bearing: float = _num(0.0, 0.0, 1.4, "match_prior: motion, match_refine: icp: the ICP's prior is "
+                                      "centred the step's travel out along the bearing the search found from the "
+                                      "step's start, for bearings turned up to this much from the prediction's [rad] "
+                                      "(further: this much), not at the prediction; 0 = off")
     match_good_score: float = _num(1.0, 0.0, 1.0, "a match with at least this share of its end points on "
                                    "occupied cells is not held to match_gate")
     match_window: float = _num(0.0, 0.0, 100.0, "match_prior: motion: search half-widths of this many std-devs of "
@@ -219,6 +223,10 @@ class SlamConfig:
                                 or self.match_prior != "motion"):
             raise ConfigError("odom_scale needs proposal=scan_match, match_refine=icp and match_prior=motion (it "
                               "weighs the matches by the ICP's information against the motion prior)")
+        if self.match_prior_bearing > 0 and (self.proposal != "scan_match" or self.match_refine != "icp"
+                                             or self.match_prior != "motion"):
+            raise ConfigError("match_prior_bearing needs proposal=scan_match, match_refine=icp and match_prior=motion "
+                              "(it moves the ICP's motion prior)")
         for name in ("map_width", "map_height"):
             if getattr(self, name) < 4 * self.map_resolution:
                 raise ConfigError(f"{name}={getattr(self, name)} must be at least 4 cells of map_resolution")

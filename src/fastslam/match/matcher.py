@@ -33,7 +33,14 @@ from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Beams, end_points, spread_returns
 from fastslam.geometry import inv3, transform_points
-from fastslam.match.refine import ICP_ITERATIONS, hill_climb, icp_fit, prior_information, surface_normals
+from fastslam.match.refine import (
+    ICP_ITERATIONS,
+    hill_climb,
+    icp_fit,
+    prior_information,
+    prior_on_bearing,
+    surface_normals,
+)
 from fastslam.match.search import POOL, POOL_CELLS, grid_search, pick, pool_occupied, pool_signed, search_area, window
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
@@ -67,6 +74,7 @@ class MatchParams:
     icp_iterations: int = ICP_ITERATIONS  # the ICP's Gauss-Newton steps
     short_free: float = 0.0      # [m] free end points in runs spanning less than this do not count
     search_gain: float = 1.0     # nats per end point on a wall in the searches, against the prior
+    prior_bearing: float = 0.0   # [rad] the ICP's prior along the searched bearing (prior_on_bearing); 0 = off
 
     @classmethod
     def from_config(cls, cfg: SlamConfig) -> MatchParams:
@@ -76,7 +84,7 @@ class MatchParams:
                    max_free=cfg.match_max_free, icp_beams=cfg.match_icp_beams,
                    icp_from_prior=cfg.match_icp_from_prior, icp_iterations=cfg.match_icp_iterations,
                    short_free=cfg.match_short_free,
-                   search_gain=cfg.match_search_gain)
+                   search_gain=cfg.match_search_gain, prior_bearing=cfg.match_prior_bearing)
 
 
 @dataclass(frozen=True)
@@ -108,13 +116,14 @@ class Match:
 
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
                 prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-                arc: OdometryArc | None = None) -> Match:
+                arc: OdometryArc | None = None, origin: NDArray[np.float64] | None = None) -> Match:
     """Matches the beams of one scan from each pose (N, 3) against that particle's map.
 
     prior: (centre (N, 3), std-devs (3,) along, across, heading) of the odometry prior;
     None: centred on poses with half the search window as std-devs. arc: the searches
     weigh candidates by the step's odometry model in its own terms about the centre
-    instead (the ICP keeps the Gaussian: it starts from the searches' pick).
+    instead (the ICP keeps the Gaussian: it starts from the searches' pick). origin: (N, 2)
+    where each particle's step began, for params.prior_bearing (None: off).
     """
     n = len(poses)
     nothing = Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
@@ -141,7 +150,8 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     # large building would otherwise take tens of MB.
     size = max(1, MATCH_BYTES // ((x1 - x0) * (y1 - y0) * 5 // 16))     # pooled maps (half, quarter) per particle
     found = [_match_some(grid.view(a, min(n, a + size)), poses[a:a + size], centre[a:a + size], spread, local,
-                         icp_points, (x0, y0, x1, y1), k0, ka, dth, params, arc)
+                         icp_points, (x0, y0, x1, y1), k0, ka, dth, params, arc,
+                         None if origin is None else origin[a:a + size])
              for a in range(0, n, size)]
     pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
     cov, info, free = (None if found[0][i] is None else np.concatenate([f[i] for f in found]) for i in (2, 4, 5))
@@ -171,7 +181,8 @@ def far_range(local: NDArray[np.float64]) -> float:
 def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.float64], spread: NDArray[np.float64],
                 local: NDArray[np.float64], icp_points: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
                 box: tuple[int, int, int, int],
-                k0: int, ka: int, dth: float, params: MatchParams, arc: OdometryArc | None
+                k0: int, ka: int, dth: float, params: MatchParams, arc: OdometryArc | None,
+                origin: NDArray[np.float64] | None
                 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | None, NDArray[np.float64],
                            NDArray[np.float64] | None, NDArray[np.float64] | None]:
     """match_poses for the particles of grid (a view): (poses, trusted, covariance, score,
@@ -197,6 +208,8 @@ def _match_some(grid: GridMaps, poses: NDArray[np.float64], centre: NDArray[np.f
     # 3. finer than a cell
     cov = scan_info = None
     if icp_points is not None:
+        if origin is not None and params.prior_bearing > 0:
+            centre = prior_on_bearing(centre, origin, pose, params.prior_bearing)
         pose, info = _icp(grid, pose, icp_points[0], icp_points[1], centre, spread, params)
         scan_info = info - prior_information(centre, spread)
         if params.covariance:

@@ -3,6 +3,7 @@ evidence (gmapping's optimiser), or Gauss-Newton steps pulling each end point on
 occupied cells along the scan's surface normals (ICP), with the odometry prior."""
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,6 +21,7 @@ ICP_ITERATIONS = 3     # Gauss-Newton steps by default (match_icp_iterations)
 ICP_RADIUS = 2         # cells searched around each end point for occupied ones
 ICP_SIGMA = 0.05       # [m] std-dev of an end point about its cell centre
 ICP_SPREAD = 1.0       # [cells] std-dev of the weights of occupied centres around an end point
+BEARING_MIN_TRAVEL = 0.05   # [m] prior_on_bearing: shorter steps (turns on the spot) have no bearing
 NORMAL_GAP = 0.3       # [m] neighbouring returns farther apart give no surface normal
 _OFFSETS = np.arange(-ICP_RADIUS, ICP_RADIUS + 1)
 _KERNEL_X, _KERNEL_Y = (v.reshape(-1) for v in np.meshgrid(_OFFSETS, _OFFSETS))   # the kernel's cells, rows first
@@ -100,6 +102,30 @@ def prior_information(centre: NDArray[np.float64], spread: NDArray[np.float64]) 
     out[:, 1, 1] = ia * s ** 2 + ic * c ** 2
     out[:, 0, 1] = out[:, 1, 0] = (ia - ic) * c * s
     out[:, 2, 2] = 1.0 / spread[2] ** 2
+    return out
+
+
+def prior_on_bearing(centre: NDArray[np.float64], origin: NDArray[np.float64], pick: NDArray[np.float64],
+                     max_turn: float) -> NDArray[np.float64]:
+    """(N, 3) the prior's centres (N, 3) moved along their steps from origin (N, 2), so that
+    the point of the pick's bearing from origin nearest the centre lies the step's travel out:
+    centre - origin scaled by 1 / cos(turn), the turn between the two bearings, at most max_turn.
+
+    A step whose first turn erred ends on an arc round its start. Where the scan fixes
+    the bearing but not the travel (a corridor), the Gaussian about the prediction puts
+    the match at the foot of the perpendicular, travel * cos(turn) out: with simulated
+    odometry noise our maps came out 0.2-0.5 % small. Steps or picks under BEARING_MIN_TRAVEL
+    keep their centre; the heading stays.
+    """
+    step = centre[:, :2] - origin
+    found = pick[:, :2] - origin
+    travel = np.hypot(step[:, 0], step[:, 1])
+    reach = np.hypot(found[:, 0], found[:, 1])
+    moved = (travel >= BEARING_MIN_TRAVEL) & (reach >= BEARING_MIN_TRAVEL)
+    cos_turn = np.ones(len(centre))
+    cos_turn[moved] = (step[moved] * found[moved]).sum(axis=1) / (travel[moved] * reach[moved])
+    out = centre.copy()
+    out[:, :2] = origin + step / np.maximum(cos_turn, math.cos(max_turn))[:, None]
     return out
 
 

@@ -146,7 +146,7 @@ class FastSlam:
         self._odom: NDArray[np.float64] | None = None
         self._predicted = self.poses.copy()          # noise-free motion of the last update
         self._motion_std = np.zeros(3)               # and its spread (match_prior: motion)
-        self._step_start: NDArray[np.float64] | None = None
+        self._step_start: NDArray[np.float64] | None = None   # where the last step began (match_prior_bearing)
         self._arc: OdometryArc | None = None         # and the step in its own terms (match_prior_arc)
         self._stamp = -np.inf
         self._refused = False  # a growth was refused in this life (reported once)
@@ -261,7 +261,8 @@ class FastSlam:
         if cfg.proposal == "scan_match" and cfg.match_prior == "motion":
             # The matcher's prior: the noise-free prediction and its spread (no random draw).
             self._predicted = self.poses.copy()
-            self._step_start = self.poses[:, :2].copy()   # where the step began (match_prior_bearing)
+            if cfg.match_prior_bearing > 0:   # where the step began
+                self._step_start = self.poses[:, :2].copy()
             self._apply_motion(self._predicted, moved, noise=False)
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, moved, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))

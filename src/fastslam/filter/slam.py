@@ -133,8 +133,8 @@ class FastSlam:
         self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)
         self._match_params = MatchParams.from_config(cfg)
         self._track_params = replace(self._match_params, beams=cfg.track_beams)   # track_scans' matches
-        self._raw_travel = 0.0   # odom_scale: the last step's travel as measured, the particles before it
-        self._before: NDArray[np.float64] | None = None
+        self._raw_travel = 0.0   # odom_scale: the last step's travel as measured
+        self._before: NDArray[np.float64] | None = None   # the particles before it (odom_scale, match_prior_bearing)
         self.poses = np.zeros((n, 3))
         spread = np.array([cfg.init_sigma_xy, cfg.init_sigma_xy, cfg.init_sigma_theta])
         if np.any(spread > 0):
@@ -146,7 +146,6 @@ class FastSlam:
         self._odom: NDArray[np.float64] | None = None
         self._predicted = self.poses.copy()          # noise-free motion of the last update
         self._motion_std = np.zeros(3)               # and its spread (match_prior: motion)
-        self._step_start: NDArray[np.float64] | None = None   # where the last step began (match_prior_bearing)
         self._arc: OdometryArc | None = None         # and the step in its own terms (match_prior_arc)
         self._stamp = -np.inf
         self._refused = False  # a growth was refused in this life (reported once)
@@ -254,15 +253,14 @@ class FastSlam:
         cfg = self.cfg
         assert self._odom is not None
         moved = odom   # the odometry pose the particles move to: scaled (odom_scale) or as measured
+        if self.odom_scale is not None or cfg.match_prior_bearing > 0:
+            self._before = self.poses.copy()
         if self.odom_scale is not None:
             self._raw_travel = odometry_step(self._odom, odom)[0]
-            self._before = self.poses.copy()
             moved = self.odom_scale.corrected(self._odom, odom)
         if cfg.proposal == "scan_match" and cfg.match_prior == "motion":
             # The matcher's prior: the noise-free prediction and its spread (no random draw).
             self._predicted = self.poses.copy()
-            if cfg.match_prior_bearing > 0:   # where the step began
-                self._step_start = self.poses[:, :2].copy()
             self._apply_motion(self._predicted, moved, noise=False)
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, moved, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
@@ -469,7 +467,8 @@ class FastSlam:
         motion_std = self._motion_std * wider
         arc = None if self._arc is None else self._arc.widened(wider)
         start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted, motion_std)
-        match = match_poses(self.grid, start, beams, params, prior=prior, arc=arc, origin=self._step_start)
+        origin = None if self._before is None else self._before[:, :2]   # where the step began
+        match = match_poses(self.grid, start, beams, params, prior=prior, arc=arc, origin=origin)
         return gate_match(self.cfg, match, self._predicted, motion_std, arc)
 
     def _sample_around(self, match: Match) -> None:

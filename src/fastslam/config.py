@@ -219,14 +219,14 @@ class SlamConfig:
                               "match_prior=motion (the prior it integrates)")
         if self.match_spread == "match" and self.match_refine != "icp":
             raise ConfigError("match_spread=match needs match_refine=icp (the hill climb has no covariance)")
-        if self.odom_scale and (self.proposal != "scan_match" or self.match_refine != "icp"
-                                or self.match_prior != "motion"):
-            raise ConfigError("odom_scale needs proposal=scan_match, match_refine=icp and match_prior=motion (it "
-                              "weighs the matches by the ICP's information against the motion prior)")
-        if self.match_prior_bearing > 0 and (self.proposal != "scan_match" or self.match_refine != "icp"
-                                             or self.match_prior != "motion"):
-            raise ConfigError("match_prior_bearing needs proposal=scan_match, match_refine=icp and match_prior=motion "
-                              "(it moves the ICP's motion prior)")
+        icp_with_motion_prior = (self.proposal == "scan_match" and self.match_refine == "icp"
+                                 and self.match_prior == "motion")
+        for name, on, why in (("odom_scale", self.odom_scale,
+                               "weighs the matches by the ICP's information against the motion prior"),
+                              ("match_prior_bearing", self.match_prior_bearing > 0, "moves the ICP's motion prior")):
+            if on and not icp_with_motion_prior:
+                raise ConfigError(f"{name} needs proposal=scan_match, match_refine=icp and match_prior=motion (it "
+                                  f"{why})")
         for name in ("map_width", "map_height"):
             if getattr(self, name) < 4 * self.map_resolution:
                 raise ConfigError(f"{name}={getattr(self, name)} must be at least 4 cells of map_resolution")

@@ -52,10 +52,10 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 # Likelihood weights need no expected ranges, so the map update traces each beam only
 # about as far as it reaches, in this many groups of beams of similar length.
 TRIM_GROUPS = 4
-# track_scans: a robot whose odometry moved less than this since the last match stands; it
-# is not matched again. Slow moves are: with 5 cm / 0.02 rad (round 9) every ACES seed of
-# 0-11 erred 0.0013-0.0018 m more (its scans at 5-10 Hz, 35 % fewer matches, about 10 % of
-# its time); docs/benchmarks.md round 30
+# track_scans: a robot whose odometry moved less than this since the last match stands and
+# is not matched again; a slow one is. Skipping moves under 5 cm / 0.02 rad (round 9) cost
+# every ACES seed 0-11 0.0013-0.0018 m and saved about 10 % of its time (docs/benchmarks.md
+# round 30)
 TRACK_STILL = (0.001, 0.0005)  # [m], [rad]
 # A stalled odometry: its pose unchanged since the last scan while the scan changed
 # (median range change over the returns of both). CSAIL's odometry repeats its pose for

@@ -1,12 +1,15 @@
 """Accuracy over the whole development set, through the offline tool (`make bench accuracy`).
 
     PYTHONPATH=src:. python -m bench.accuracy [--config config/real.yaml] [--set key=value]... [--seeds 0 1 2]
-                             [--logs csail aces intel ...] [--jobs N] [--json FILE]
+                             [--logs csail aces intel ...] [--phases 0-3] [--jobs N] [--json FILE]
 
 Every case runs `python -m fastslam.offline BAG --out DIR --config ... --seed S`, the
 command a user runs, in its own process, one at a time (`--jobs N`: N at a time, for
 judging a change on many seeds; the time targets stand only at one at a time). Seeds
-are numbers or ranges: `--seeds 0-11 20`.
+are numbers or ranges: `--seeds 0-11 20`. `--phases 0-3` runs every case at each phase
+of the matcher's pooling blocks (`python -m bench.phase K ...`; phase 0 is the offline
+tool itself): on the two bags the seeds leave the blocks where they are, so judge a
+change to the ACES bag over the phases, not over its seeds alone (round 26).
 
 - the real robots with their own odometry at their full scan rate (`mit-csail.bag`,
   `aces.bag`), scored with their ground-truth relations (Kuemmerle et al. 2009) on the
@@ -38,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import ROOT, data_path, progress
+from bench.phase import PHASES
 from fastslam.cli import closed_output_ends_quietly
 from fastslam.eval.trajectory import ate, match_by_time, relations_score
 from fastslam.io.trajectory_files import read_relations, read_trajectory
@@ -52,9 +56,11 @@ TARGET_ATE_MEDIAN, TARGET_ATE_WORST = 0.15, 0.5        # [m]
 CACHE = ROOT / "out" / "bench-accuracy"                # converted bags, reused between runs
 
 
-def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str]) -> dict:
-    """The offline tool on bag in its own process; its stats plus the command's wall time."""
-    cmd = [sys.executable, "-m", "fastslam.offline", str(bag), "--out", str(out), "--config", str(config),
+def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str], phase: int = 0) -> dict:
+    """The offline tool on bag in its own process (phase: with the matcher's blocks moved,
+    bench.phase); its stats plus the command's wall time."""
+    tool = ["fastslam.offline"] if phase == 0 else ["bench.phase", str(phase)]
+    cmd = [sys.executable, "-m", *tool, str(bag), "--out", str(out), "--config", str(config),
            "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)]
     with open(out.with_name(out.name + ".stderr"), "w+") as err:
         start = time.perf_counter()
@@ -111,42 +117,45 @@ def converted(log: str, seed: int, level: float = 1.0) -> Path:
     return bag
 
 
-def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path) -> dict:
+def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path, phase: int = 0) -> dict:
     stem = REAL[name]
-    out = work / f"{name}-{seed}"
-    row = run_offline(data_path(f"{stem}.bag"), out, config, seed, sets)
+    out = work / f"{name}-{seed}-p{phase}"
+    row = run_offline(data_path(f"{stem}.bag"), out, config, seed, sets, phase)
     rel = read_relations(data_path(f"{stem}.relations"))
     t, p = read_trajectory(out / "trajectory_scans.txt")
     s = relations_score(t, p, rel)
     lt, lp = read_trajectory(out / "live_poses.txt")
     live = relations_score(lt, lp, rel)
     sm = relations_score(*read_trajectory(out / "trajectory_smoothed.txt"), rel)
-    return {"log": name, "seed": seed, "error": s.trans_mean, "rel_max": s.trans_max, "rot_deg": s.rot_mean,
+    return {"log": name, "seed": seed, "phase": phase, "error": s.trans_mean, "rel_max": s.trans_max,
+            "rot_deg": s.rot_mean,
             "live": live.trans_mean, "live_max": live.trans_max, "smoothed": sm.trans_mean,
             "smoothed_max": sm.trans_max, **row}
 
 
-def corrected_case(name: str, seed: int, config: Path, sets: list[str], work: Path) -> dict:
+def corrected_case(name: str, seed: int, config: Path, sets: list[str], work: Path, phase: int = 0) -> dict:
     bag = converted(name, seed)
-    out = work / f"{name}-{seed}"
-    row = run_offline(bag, out, config, seed, sets)
+    out = work / f"{name}-{seed}-p{phase}"
+    row = run_offline(bag, out, config, seed, sets, phase)
     ref_t, ref = read_trajectory(bag.with_name(bag.name + ".gt.txt"))
     t, p = read_trajectory(out / "trajectory_scans.txt")
     _, r, e = match_by_time(ref_t, ref, t, p, max_dt=1e-4)
     lt, lp = read_trajectory(out / "live_poses.txt")
     _, lr, le = match_by_time(ref_t, ref, lt, lp, max_dt=1e-4)
     _, sr, se = match_by_time(ref_t, ref, *read_trajectory(out / "trajectory_smoothed.txt"), max_dt=1e-4)
-    return {"log": name, "seed": seed, "error": ate(r, e), "matched": len(r), "live": ate(lr, le),
+    return {"log": name, "seed": seed, "phase": phase, "error": ate(r, e), "matched": len(r), "live": ate(lr, le),
             "smoothed": ate(sr, se), **row}
 
 
-def print_log(rows: list[dict], relations: bool) -> None:
+def print_log(rows: list[dict], relations: bool, phases: bool = False) -> None:
+    """One log's table line (phases: one phase's, named so)."""
     err = [r["error"] for r in rows]
     seeds = " ".join(f"{v:6.3f}" for v in err)
     extra = f"{max(r['rel_max'] for r in rows):8.3f}" if relations else f"{'':8}"
     live = np.median([r["live"] for r in rows])
     smooth = np.median([r["smoothed"] for r in rows])
-    print(f"{rows[0]['log']:<13} {'rel' if relations else 'ATE':<4} {seeds:<21} {np.median(err):7.3f} "
+    name = f"{rows[0]['log']} p{rows[0]['phase']}" if phases else rows[0]["log"]
+    print(f"{name:<13} {'rel' if relations else 'ATE':<4} {seeds:<21} {np.median(err):7.3f} "
           f"{max(err):7.3f} {extra} {live:7.3f} {smooth:8.3f} {max(r['wall_s'] for r in rows):7.1f} "
           f"{max(r['cpu_s'] for r in rows):6.1f} "
           f"{max(r['peak_mb'] for r in rows):7.0f} {rows[0]['updates']:>5}/{rows[0]['scans']:<5}", flush=True)
@@ -182,40 +191,43 @@ def summary(rows: list[dict], error: str = "error", rel_max: str = "rel_max", ti
     return f"{title}: {met}/{total} targets met; " + "; ".join(parts)
 
 
-def seed_list(words: list[str]) -> list[int]:
-    """Seeds from numbers and ranges ("0-11": 0 to 11), in the order given."""
+def seed_list(words: list[str], what: str = "seed", flag: str = "--seeds") -> list[int]:
+    """Seeds (or other numbers) from numbers and ranges ("0-11": 0 to 11), in the order given."""
     seeds: list[int] = []
     for word in words:
         first, dash, last = word.partition("-")
         if not first.isdigit() or (dash and not last.isdigit()) or (dash and int(last) < int(first)):
-            raise ValueError(f"--seeds: {word!r} is neither a seed nor a range such as 0-11")
+            raise ValueError(f"{flag}: {word!r} is neither a {what} nor a range such as 0-11")
         seeds += list(range(int(first), int(last if dash else first) + 1))
     return seeds
 
 
 def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], work: Path,
-              jobs: int) -> list[dict]:
-    """Every (log, seed) case, jobs at a time; each log's table line printed once its cases
-    are done, the logs and seeds in the order given."""
+              jobs: int, phases: list[int] | None = None) -> list[dict]:
+    """Every (log, phase, seed) case, jobs at a time; each log's (and phase's) table line
+    printed once its cases are done, the logs, phases and seeds in the order given."""
     failed = threading.Event()   # a failed case stops the bench: no case starts after it
+    phases = [0] if phases is None else phases
 
-    def case(name: str, seed: int) -> dict:
+    def case(name: str, seed: int, phase: int) -> dict:
         if failed.is_set():   # (the bench meets the failure before any case skipped after it)
             raise CancelledError(f"{name} seed {seed}: not run after a failed case")
         try:
-            return (real_case if name in REAL else corrected_case)(name, seed, config, sets, work)
+            return (real_case if name in REAL else corrected_case)(name, seed, config, sets, work, phase)
         except BaseException:
             failed.set()
             raise
 
     rows: list[dict] = []
     with ThreadPoolExecutor(max_workers=jobs) as pool:   # threads: each only waits on its process
-        pending = {name: [pool.submit(case, name, seed) for seed in seeds] for name in logs}
+        pending = {(name, phase): [pool.submit(case, name, seed, phase) for seed in seeds]
+                   for name in logs for phase in phases}
         try:
-            for name in logs:
-                log_rows = [f.result() for f in progress(pending[name], name)]
+            for name, phase in pending:
+                label = name if phases == [0] else f"{name} phase {phase}"
+                log_rows = [f.result() for f in progress(pending[(name, phase)], label)]
                 rows += log_rows
-                print_log(log_rows, name in REAL)
+                print_log(log_rows, name in REAL, phases != [0])
         except BaseException:
             failed.set()   # (an interrupt here too) the cases not yet started end at once
             raise
@@ -229,19 +241,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="passed to the offline tool")
     ap.add_argument("--seeds", nargs="+", default=["0", "1", "2"], help="seeds and ranges (0-11)")
     ap.add_argument("--logs", nargs="+", default=list(REAL) + list(CORRECTED), choices=list(REAL) + list(CORRECTED))
+    ap.add_argument("--phases", nargs="+", default=["0"],
+                    help=f"phases of the matcher's pooling blocks, 0-{PHASES[-1]} (bench.phase; default 0)")
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once (time targets: 1)")
     ap.add_argument("--json", metavar="FILE", help="also write every row here")
     args = ap.parse_args(argv)
     try:
         args.seeds = seed_list(args.seeds)
+        args.phases = seed_list(args.phases, "phase", "--phases")
     except ValueError as err:
         ap.error(str(err))
+    outside = [p for p in args.phases if p not in PHASES]
+    if outside:
+        ap.error(f"--phases: {outside[0]} is not a phase of the matcher's blocks (0 to {PHASES[-1]})")
     if args.jobs < 1:
         ap.error(f"--jobs: {args.jobs} is not a number of cases at once (1 or more)")
     config = Path(args.config).resolve()
     shown = config.relative_to(ROOT) if ROOT in config.parents else config  # no is_relative_to on 3.8
     print(f"accuracy: {shown}"
-          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}, data {data_path('aces.bag').parent}"
+          f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}"
+          f"{f', phases {args.phases}' if args.phases != [0] else ''}, data {data_path('aces.bag').parent}"
           f"{f', {args.jobs} cases at once (wall and CPU seconds share the machine)' if args.jobs > 1 else ''}")
     print("rel: relations mean [m] of the pose at every scan (max: worst single relation); ATE [m] after "
           "alignment; live: the same for map->odom's poses (median); smoothed: the same for "
@@ -252,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{'wall s':>7} {'cpu s':>6} {'peak MB':>7} {'updates/scans'}")
     with tempfile.TemporaryDirectory(prefix="bench-accuracy-") as tmp:
         try:
-            rows = run_cases(args.logs, args.seeds, config, args.set, Path(tmp), args.jobs)
+            rows = run_cases(args.logs, args.seeds, config, args.set, Path(tmp), args.jobs, args.phases)
         except RuntimeError as err:   # a case's command failed: its last line, no traceback
             print(f"bench.accuracy: {err}", file=sys.stderr)
             return 1

@@ -3,8 +3,9 @@
     PYTHONPATH=src:. python -m bench.compare --before A.json [A2.json ...] --after B.json [B2.json ...]
 
 The files are `bench.accuracy --json` rows (several per side: runs split over processes or
-seeds; a later file's row for the same log and seed replaces an earlier one's). Per log:
-the median of seeds 0-2 (the targets' seeds) and of every common seed, the runs over the
+seeds; a later file's row for the same log, seed and phase replaces an earlier one's; rows
+without a phase are phase 0's). Per log, over the runs (seed and phase) both sides have:
+the median of seeds 0-2 at phase 0 (the targets' runs) and of every common run, the runs over the
 target (relations mean, or 0.15 m ATE) and over 0.5 m (the worst relation, or the ATE),
 and p: the share of random splits of the pooled runs, into groups of the two sides' sizes,
 whose medians differ at least as much in the observed direction (exact when there are few
@@ -19,6 +20,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Tuple
 
 import numpy as np
 
@@ -45,31 +47,36 @@ def median_shift_p(before: list[float], after: list[float], seed: int = 0, draws
     return float(np.mean(sign * (first - second) >= observed - 1e-12))
 
 
-def read_rows(files: list[str]) -> dict[tuple[str, int], dict]:
-    """(log, seed) -> row, from bench.accuracy --json files."""
-    rows: dict[tuple[str, int], dict] = {}
+Key = Tuple[str, int, int]   # log, seed, phase of the matcher's blocks (bench.phase)
+
+
+def read_rows(files: list[str]) -> dict[Key, dict]:
+    """(log, seed, phase) -> row, from bench.accuracy --json files."""
+    rows: dict[Key, dict] = {}
     for name in files:
         try:
             data = json.loads(Path(name).read_text())
-            rows.update({(str(r["log"]), int(r["seed"])): r for r in data})
+            rows.update({(str(r["log"]), int(r["seed"]), int(r.get("phase", 0))): r for r in data})
         except (OSError, ValueError, TypeError, KeyError) as err:
             raise ValueError(f"{name}: not bench.accuracy --json rows ({err})") from None
     return rows
 
 
-def compare(before: dict[tuple[str, int], dict], after: dict[tuple[str, int], dict]) -> list[dict]:
-    """Per log with common seeds: seeds, medians (seeds 0-2, all), runs over the target and over 0.5 m, p."""
+def compare(before: dict[Key, dict], after: dict[Key, dict]) -> list[dict]:
+    """Per log with common runs: seeds, phases, medians (seeds 0-2 at phase 0, all), runs over
+    the target and over 0.5 m, p."""
     out = []
     for log in [*REAL, *CORRECTED]:
-        seeds = sorted(s for (name, s) in before if name == log and (name, s) in after)
-        if not seeds:
+        keys = sorted(k for k in before if k[0] == log and k in after)
+        if not keys:
             continue
-        line: dict = {"log": log, "seeds": seeds}
+        line: dict = {"log": log, "seeds": sorted({k[1] for k in keys}), "phases": sorted({k[2] for k in keys}),
+                      "runs": len(keys)}
         for side, rows in (("before", before), ("after", after)):
-            runs = [rows[(log, s)] for s in seeds]
+            runs = [rows[k] for k in keys]
             err = [float(r["error"]) for r in runs]
             worst = [float(r["rel_max"]) for r in runs] if log in REAL else err
-            first3 = [e for s, e in zip(seeds, err) if s < 3]
+            first3 = [e for k, e in zip(keys, err) if k[1] < 3 and k[2] == 0]
             line[side] = {"errors": err, "median": float(np.median(err)),
                           "median_first3": float(np.median(first3)) if first3 else None,
                           "over_target": sum(e > TARGET_REL.get(log, TARGET_ATE_MEDIAN) for e in err),
@@ -101,6 +108,8 @@ def table(lines: list[dict]) -> str:
                  f"{fmt.format(s['median'])}; {s['over_target']}; {s['over_half_metre']}"
                  for s in (ln["before"], ln["after"])]
         seeds = f"{len(ln['seeds'])} ({seed_ranges(ln['seeds'])})"
+        if ln["phases"] != [0]:
+            seeds += f" x phases {seed_ranges(ln['phases'])}: {ln['runs']} runs"
         text.append(f"| {ln['log']} | {seeds} | {cells[0]} | {cells[1]} | {ln['p']:.2f} |")
     return "\n".join(text)
 
@@ -117,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     if not lines:
-        print("error: the two sides have no log and seed in common", file=sys.stderr)
+        print("error: the two sides have no log, seed and phase in common", file=sys.stderr)
         return 2
     print(table(lines))
     return 0

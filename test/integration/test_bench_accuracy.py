@@ -1,14 +1,18 @@
-"""The accuracy bench's cache of converted corrected logs (bench.accuracy.converted)."""
+"""The accuracy bench: its cache of converted corrected logs (bench.accuracy.converted), its
+cases side by side and at the phases of the matcher's blocks (bench.phase)."""
 from __future__ import annotations
 
 import json
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from bench import accuracy
+from bench import accuracy, phase
+from fastslam.filter.grid import GridMaps
 from fastslam.io.trajectory_files import read_trajectory
+from fastslam.match import search
 
 
 @pytest.fixture(autouse=True)
@@ -90,3 +94,40 @@ def test_a_failing_case_is_one_line_and_exit_1_and_starts_no_other(tmp_path, mon
     assert code == 1
     assert len(err) == 1 and err[0].startswith("bench.accuracy: ") and "particles" in err[0], err
     assert started == [0]
+
+
+def test_a_phase_moves_the_matchers_window_corner_that_many_cells_and_keeps_its_area():
+    grid = GridMaps(1, (400, 400), 0.05, (-10.0, -10.0))
+    poses = np.array([[0.3, -0.7, 0.0], [0.5, -0.6, 1.0]])
+    x0, y0, x1, y1 = search.window(grid, poses, 4.0)
+    for k in range(1, search.POOL):
+        a0, b0, a1, b1 = phase.shifted_window(k)(grid, poses, 4.0)
+        assert (a0, b0) == (x0 - k, y0 - k)                                   # the blocks start k cells lower
+        assert x1 <= a1 <= x1 + search.POOL and y1 <= b1 <= y1 + search.POOL    # nothing the window held is lost
+        assert (a1 - a0) % search.POOL == 0 and (b1 - b0) % search.POOL == 0
+    corner = np.array([[-9.5, -9.5, 0.0]])                                   # the window starts at the grid's edge
+    assert phase.shifted_window(2)(grid, corner, 4.0)[:2] == search.window(grid, corner, 4.0)[:2] == (0, 0)
+
+
+def test_phases_are_0_to_3_and_a_phase_beyond_is_refused_before_any_case(capsys):
+    assert accuracy.seed_list(["0-3"], "phase", "--phases") == [0, 1, 2, 3]
+    with pytest.raises(SystemExit) as stop:
+        accuracy.main(["--logs", "seattle", "--seeds", "0", "--phases", "2", "4"])
+    assert stop.value.code == 2 and "--phases: 4 is not a phase" in capsys.readouterr().err
+    assert phase.main(["7", "any.bag", "--out", "x"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["bench.phase: the first argument is the phase, 0 to 3; got '7'"]
+
+
+def test_each_phase_is_a_case_of_its_own_and_phase_0_is_the_offline_tool_itself(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(accuracy, "CACHE", tmp_path / "cache")
+    both = tmp_path / "both.json"
+    assert accuracy.main(["--logs", "seattle", "--seeds", "0", "--phases", "0-1", "--json", str(both)]) == 0
+    out = capsys.readouterr().out
+    assert "seattle p0 " in out and "seattle p1 " in out                    # a table line per phase
+    rows = json.loads(both.read_text())
+    assert [(r["log"], r["seed"], r["phase"]) for r in rows] == [("seattle", 0, 0), ("seattle", 0, 1)]
+    plain = tmp_path / "plain.json"
+    assert accuracy.main(["--logs", "seattle", "--seeds", "0", "--json", str(plain)]) == 0
+    assert json.loads(plain.read_text())[0]["error"] == rows[0]["error"]   # phase 0: the same run to the bit
+    assert rows[1]["error"] != rows[0]["error"]                             # the blocks moved: another run

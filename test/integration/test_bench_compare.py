@@ -48,11 +48,32 @@ def test_seeds_beyond_the_first_three_show_no_median_of_them_and_their_runs_of_s
 
 
 def test_the_real_bags_count_their_worst_relation_over_half_a_metre(tmp_path):
-    rows = {("aces", s): {"log": "aces", "seed": s, "error": e, "rel_max": m}
+    rows = {("aces", s, 0): {"log": "aces", "seed": s, "error": e, "rel_max": m}
             for s, e, m in [(0, 0.044, 0.3), (1, 0.046, 0.7), (2, 0.050, 0.4)]}
     line, = compare.compare(rows, rows)
     assert line["before"]["over_target"] == 2 and line["before"]["over_half_metre"] == 1
     assert line["before"]["median_first3"] == pytest.approx(0.046)
+
+
+def test_each_phase_of_a_seed_is_its_own_run_and_rows_without_one_are_phase_0s(tmp_path, capsys):
+    # before: phase 0 rows written before phases existed; after: the same seeds at phases 0 and 1
+    before = tmp_path / "a.json"
+    before.write_text(json.dumps([{"log": "aces", "seed": s, "error": e, "rel_max": 0.4}
+                                  for s, e in [(0, 0.041), (1, 0.047), (2, 0.040)]]
+                                 + [{"log": "aces", "seed": s, "phase": 1, "error": 0.050, "rel_max": 0.8}
+                                    for s in (0, 1, 2)]))
+    after = tmp_path / "b.json"
+    after.write_text(json.dumps([{"log": "aces", "seed": s, "phase": ph, "error": 0.042, "rel_max": 0.4}
+                                 for s in (0, 1, 2) for ph in (0, 1)]))
+    line, = compare.compare(compare.read_rows([str(before)]), compare.read_rows([str(after)]))
+    assert line["runs"] == 6 and line["phases"] == [0, 1]
+    # seeds 0-2 at phase 0: 0.041 0.047 0.040 -> 0.041; all six: 0.041 0.047 0.040 0.050 0.050 0.050 -> 0.0485
+    assert line["before"]["median_first3"] == pytest.approx(0.041)
+    assert line["before"]["median"] == pytest.approx(0.0485)
+    assert line["before"]["over_half_metre"] == 3 and line["after"]["over_half_metre"] == 0
+    assert compare.main(["--before", str(before), "--after", str(after)]) == 0
+    row = capsys.readouterr().out.splitlines()[2]
+    assert row.startswith("| aces | 3 (0-2) x phases 0-1: 6 runs | 0.0410 / 0.0485;"), row
 
 
 @pytest.mark.parametrize("content", ["not json", '[{"log": "aces"}]'])
@@ -68,4 +89,4 @@ def test_no_common_seed_is_one_line_and_exit_2(tmp_path, capsys):
     a = _rows(tmp_path / "a.json", "intel", [(0, 0.1)])
     b = _rows(tmp_path / "b.json", "intel", [(1, 0.1)])
     assert compare.main(["--before", a, "--after", b]) == 2
-    assert "no log and seed in common" in capsys.readouterr().err
+    assert "no log, seed and phase in common" in capsys.readouterr().err

@@ -207,11 +207,11 @@ def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], 
     """Every (log, phase, seed) case, jobs at a time; each log's (and phase's) table line
     printed once its cases are done, the logs, phases and seeds in the order given."""
     failed = threading.Event()   # a failed case stops the bench: no case starts after it
-    phases = [0] if phases is None else phases
+    phases = [0] if phases is None else list(dict.fromkeys(phases))   # each phase once: one line each
 
     def case(name: str, seed: int, phase: int) -> dict:
         if failed.is_set():   # (the bench meets the failure before any case skipped after it)
-            raise CancelledError(f"{name} seed {seed}: not run after a failed case")
+            raise CancelledError(f"{name} seed {seed}{f' phase {phase}' if phase else ''}: not run after a failed case")
         try:
             return (real_case if name in REAL else corrected_case)(name, seed, config, sets, work, phase)
         except BaseException:

@@ -122,11 +122,11 @@ def test_phases_are_0_to_3_and_a_phase_beyond_is_refused_before_any_case(capsys)
 def test_each_phase_is_a_case_of_its_own_and_phase_0_is_the_offline_tool_itself(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(accuracy, "CACHE", tmp_path / "cache")
     both = tmp_path / "both.json"
-    assert accuracy.main(["--logs", "seattle", "--seeds", "0", "--phases", "0-1", "--json", str(both)]) == 0
+    assert accuracy.main(["--logs", "seattle", "--seeds", "0", "--phases", "0-1", "1", "--json", str(both)]) == 0
     out = capsys.readouterr().out
     assert "seattle p0 " in out and "seattle p1 " in out                    # a table line per phase
     rows = json.loads(both.read_text())
-    assert [(r["log"], r["seed"], r["phase"]) for r in rows] == [("seattle", 0, 0), ("seattle", 0, 1)]
+    assert [(r["log"], r["seed"], r["phase"]) for r in rows] == [("seattle", 0, 0), ("seattle", 0, 1)]   # 1 once
     plain = tmp_path / "plain.json"
     assert accuracy.main(["--logs", "seattle", "--seeds", "0", "--json", str(plain)]) == 0
     assert json.loads(plain.read_text())[0]["error"] == rows[0]["error"]   # phase 0: the same run to the bit

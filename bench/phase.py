@@ -11,35 +11,14 @@ elsewhere. Phase 0 is the offline tool itself.
 """
 from __future__ import annotations
 
-import math
+import functools
 import sys
-from typing import TYPE_CHECKING, Callable
 
 from fastslam import offline
 from fastslam.cli import closed_output_ends_quietly
 from fastslam.match import matcher, search
 
-if TYPE_CHECKING:
-    import numpy as np
-    from numpy.typing import NDArray
-
-    from fastslam.filter.grid import GridMaps
-
 PHASES = range(search.POOL)
-
-
-def shifted_window(k: int) -> Callable[[GridMaps, NDArray[np.float64], float], tuple[int, int, int, int]]:
-    """search.window with its corner k cells further down and left (not below the grid's
-    first cell), its far side where it was or up to a block further, its sides still
-    multiples of POOL cells: the same area and more."""
-    def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:
-        x0, y0, x1, y1 = search.window(grid, poses, reach)
-        h, w = grid.shape
-        a0, b0 = max(x0 - k, 0), max(y0 - k, 0)
-        a1 = min(w, a0 + search.POOL * math.ceil((x1 - a0) / search.POOL))
-        b1 = min(h, b0 + search.POOL * math.ceil((y1 - b0) / search.POOL))
-        return a0, b0, a0 + search.POOL * ((a1 - a0) // search.POOL), b0 + search.POOL * ((b1 - b0) // search.POOL)
-    return window
 
 
 @closed_output_ends_quietly
@@ -51,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     phase = int(args[0])
     if phase:
-        matcher.window = shifted_window(phase)   # the name match_poses calls
+        matcher.window = functools.partial(search.window, shift=phase)   # the name match_poses calls
     return offline.main(args[1:])
 
 

@@ -6,13 +6,10 @@ import json
 import subprocess
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from bench import accuracy, phase
-from fastslam.filter.grid import GridMaps
 from fastslam.io.trajectory_files import read_trajectory
-from fastslam.match import search
 
 
 @pytest.fixture(autouse=True)
@@ -94,19 +91,6 @@ def test_a_failing_case_is_one_line_and_exit_1_and_starts_no_other(tmp_path, mon
     assert code == 1
     assert len(err) == 1 and err[0].startswith("bench.accuracy: ") and "particles" in err[0], err
     assert started == [0]
-
-
-def test_a_phase_moves_the_matchers_window_corner_that_many_cells_and_keeps_its_area():
-    grid = GridMaps(1, (400, 400), 0.05, (-10.0, -10.0))
-    poses = np.array([[0.3, -0.7, 0.0], [0.5, -0.6, 1.0]])
-    x0, y0, x1, y1 = search.window(grid, poses, 4.0)
-    for k in range(1, search.POOL):
-        a0, b0, a1, b1 = phase.shifted_window(k)(grid, poses, 4.0)
-        assert (a0, b0) == (x0 - k, y0 - k)                                   # the blocks start k cells lower
-        assert x1 <= a1 <= x1 + search.POOL and y1 <= b1 <= y1 + search.POOL    # nothing the window held is lost
-        assert (a1 - a0) % search.POOL == 0 and (b1 - b0) % search.POOL == 0
-    corner = np.array([[-9.5, -9.5, 0.0]])                                   # the window starts at the grid's edge
-    assert phase.shifted_window(2)(grid, corner, 4.0)[:2] == search.window(grid, corner, 4.0)[:2] == (0, 0)
 
 
 def test_phases_are_0_to_3_and_a_phase_beyond_is_refused_before_any_case(capsys):

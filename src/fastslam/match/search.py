@@ -181,11 +181,12 @@ def _block_max(level: NDArray[np.int8], key: str) -> NDArray[np.int8]:
     return np.maximum(pairs[..., 0], pairs[..., 1], out=scratch(key, (k, h // 2, w // 2), np.int8))
 
 
-def window(grid: GridMaps, poses: NDArray[np.float64], reach: float) -> tuple[int, int, int, int]:
+def window(grid: GridMaps, poses: NDArray[np.float64], reach: float, shift: int = 0) -> tuple[int, int, int, int]:
     """Cell bounds (x0, y0, x1, y1) of the part of the grid within reach of any pose,
-    with sides a multiple of POOL cells."""
+    with sides a multiple of POOL cells; shift: its corner that many cells further down
+    and left (where the pooled blocks fall: bench.phase)."""
     h, w = grid.shape
-    lo = grid.world_to_cell(poses[:, :2].min(axis=0) - reach)
+    lo = grid.world_to_cell(poses[:, :2].min(axis=0) - reach) - shift
     hi = grid.world_to_cell(poses[:, :2].max(axis=0) + reach) + 1
     x0, y0 = (int(v) for v in np.maximum(lo, 0))
     x1 = min(w, x0 + POOL * math.ceil((int(hi[0]) - x0) / POOL))

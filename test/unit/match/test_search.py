@@ -115,6 +115,16 @@ def test_window_is_the_reach_of_the_poses_in_pooled_cells():
     assert (x1 - x0) % POOL == 0 and (y1 - y0) % POOL == 0
 
 
+def test_a_shifted_window_starts_that_many_cells_lower_and_still_covers_the_reach():
+    grid = GridMaps(1, (40, 40), 0.25, (0.0, 0.0))
+    pose = np.array([[2.0, 2.0, 0.0]])
+    # cells 6 .. 10 as above, from cell 6 - k: sides of POOL cells reaching past cell 10
+    assert window(grid, pose, 0.5, shift=2) == (4, 4, 12, 12)
+    assert window(grid, pose, 0.5, shift=3) == (3, 3, 11, 11)
+    # at the grid's first cell the corner stays there
+    assert window(grid, np.array([[0.25, 0.25, 0.0]]), 0.5, shift=2)[:2] == (0, 0)
+
+
 def test_search_area_keeps_the_windows_alignment():
     grid = GridMaps(1, (40, 40), 0.25, (0.0, 0.0))
     # one end point 1 m ahead of (5, 5): at (6, 5); no turn, no shift: 0.5 m margin around it,

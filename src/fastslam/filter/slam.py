@@ -39,9 +39,10 @@ from fastslam.filter.proposal import (
 from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
 from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
 from fastslam.filter.tiles import TileMaps
+from fastslam.filter.track import Tracker
 from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
-from fastslam.geometry import cholesky3, circular_mean, compose, relative, transform_points, wrap_angle
-from fastslam.match import Match, MatchParams, match_poses, refine_poses
+from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
+from fastslam.match import Match, MatchParams, match_poses
 from fastslam.match.matcher import PRIOR_FLOOR
 from fastslam.match.refine import ICP_SIGMA, prior_information
 
@@ -52,17 +53,6 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 # Likelihood weights need no expected ranges, so the map update traces each beam only
 # about as far as it reaches, in this many groups of beams of similar length.
 TRIM_GROUPS = 4
-# track_scans: a robot whose odometry moved less than this since the last match stands and
-# is not matched again; a slow one is. Skipping moves under 5 cm / 0.02 rad (round 9) cost
-# every ACES seed 0-11 0.0013-0.0018 m and saved about 10 % of its time (docs/benchmarks.md
-# round 30)
-TRACK_STILL = (0.001, 0.0005)  # [m], [rad]
-# A stalled odometry: its pose unchanged since the last scan while the scan changed
-# (median range change over the returns of both). CSAIL's odometry repeats its pose for
-# four scans while the robot turns (median change 0.11-0.38 m); standing robots: 0.0-0.1.
-STALL_ODOM = 1e-6            # [m], [rad] "unchanged"
-STALL_RANGE_CHANGE = 0.1     # [m]
-STALL_STD = (0.05, 0.05, 0.15)   # [m], [m], [rad] the tracker's prior round the last pose in a stall
 
 
 @dataclass(frozen=True)
@@ -109,13 +99,14 @@ class FastSlam:
     maps_type: type[GridMaps] = TileMaps   # the maps' storage: shared copy-on-write tiles (GridMaps: dense)
 
     def __init__(self, cfg: SlamConfig, rng: np.random.Generator | None = None, *,
-                 limits: Limits | None = None) -> None:
+                 limits: Limits | None = None, tracker: Tracker | None = None) -> None:
         self.cfg = cfg
+        # the live pose between updates (map->odom); filter/pipeline.py's runs in a second process
+        self.tracker = tracker if tracker is not None else Tracker(cfg, self._track_params_of(cfg))
         self.rng = rng if rng is not None else np.random.default_rng(cfg.rng_seed)
         self.limits = limits if limits is not None else Limits()
         self.refusals = 0  # growths refused (max_map_extent, memory), over every life
         self.recoveries = 0  # updates where the wider search (match_recover) found a trusted match
-        self.stalls = 0      # scans tracked with the odometry stalled (track_scans)
         self.beyond_gate = 0  # updates where a match beyond match_gate was trusted for its score
         self.loops = 0        # updates where match_loop moved particles to a place found again
         self.trace: Callable[[UpdateTrace], None] | None = None   # called after each update (diagnostics)
@@ -128,12 +119,13 @@ class FastSlam:
         cfg = self.cfg
         n = cfg.particles
         h, w = cfg.grid_shape
+        self.tracker.clear()
+        shared = {"shared": True} if self.tracker.shares_maps else {}   # the tracker reads them from another process
         self.grid = self.maps_type(n, (h, w), cfg.map_resolution,
                              (-w * cfg.map_resolution / 2, -h * cfg.map_resolution / 2),
-                             l_limit=max(-cfg.l_min, cfg.l_max))
+                             l_limit=max(-cfg.l_min, cfg.l_max), **shared)
         self._steps = self.grid.steps(cfg.l_free, cfg.l_occ, cfg.l_min, cfg.l_max)
         self._match_params = MatchParams.from_config(cfg)
-        self._track_params = replace(self._match_params, beams=cfg.track_beams)   # track_scans' matches
         self._raw_travel = 0.0   # odom_scale: the last step's travel as measured
         self._before: NDArray[np.float64] | None = None   # the particles before it (odom_scale, match_prior_bearing)
         self.poses = np.zeros((n, 3))
@@ -153,8 +145,6 @@ class FastSlam:
         self.history = History()
         self._apart = np.zeros((n, n))   # best_particle medoid: distances between the paths, summed
         self._carried = np.zeros(n)      # each path's log-weight up to the last resampling (path_log_w)
-        # The pose map->odom gives at the last scan seen: the best particle at an update,
-        # moved by odometry (and, track_scans, the scan matcher) at the scans between.
         self._match: Match | None = None              # this update's gated match (match_weight)
         self._proposed: Match | None = None           # ... trusted or not (trace)
         # This update's poses for map->odom and (path_match_scale 0) the paths: the trusted matches
@@ -163,19 +153,34 @@ class FastSlam:
         # path_match_scale: each path's last pose (history.latest) moved by the motion since the last update
         # (the odometry's; track_scans: the live pose's, matched at the scans between), and its next pose
         self._path_predicted: NDArray[np.float64] | None = None
+        self._path_odom: NDArray[np.float64] | None = None   # ... (track_scans) to be moved to this odometry
         self._path_next: NDArray[np.float64] | None = None
-        self.live_pose = np.zeros(3)
-        self._live_at_update = np.zeros(3)                    # ... as the last update left it
-        self._live_odom: NDArray[np.float64] | None = None    # odometry at that scan
-        self._match_odom: NDArray[np.float64] | None = None   # ... at its last match
-        self._last_scan: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # (odometry, ranges)
+
+    @staticmethod
+    def _track_params_of(cfg: SlamConfig) -> MatchParams:
+        """The tracker's matches: the proposal's, on track_beams returns."""
+        return replace(MatchParams.from_config(cfg), beams=cfg.track_beams)
+
+    @property
+    def live_pose(self) -> NDArray[np.float64]:
+        """(3,) the pose map->odom gives at the last scan seen: the best particle at an update,
+        moved by odometry (and, track_scans, the scan matcher) at the scans between."""
+        return self.tracker.pose
+
+    @live_pose.setter
+    def live_pose(self, pose: NDArray[np.float64]) -> None:
+        self.tracker.pose = np.asarray(pose, dtype=np.float64)
+
+    @property
+    def stalls(self) -> int:
+        """Scans tracked with the odometry stalled (track_scans), over every life."""
+        return self.tracker.stalls
 
     def rebase_odometry(self, odom: NDArray[np.float64]) -> None:
         """Takes odom as the new reference without moving the particles (after a jump)."""
         if self._odom is not None:
             self._odom = np.asarray(odom, dtype=np.float64)
-            self._live_odom = self._match_odom = self._odom
-            self._last_scan = None
+            self.tracker.rebase(self._odom)
 
     @property
     def weights(self) -> NDArray[np.float64]:
@@ -188,8 +193,7 @@ class FastSlam:
         first = self._odom is None
         start = time.perf_counter()
         if not first and not self.due(odom, scan.stamp):
-            self._track(odom, scan)
-            self._last_scan = (odom, scan.ranges)
+            self.tracker.track(odom, scan)
             return StepInfo(processed=False, neff=neff(self.weights), best=self.best,
                             seconds=time.perf_counter() - start)
         beams = select_beams(scan, self.cfg)
@@ -204,6 +208,7 @@ class FastSlam:
         if self.cfg.proposal == "scan_match" and not first:
             matched = self._propose(beams)                      # 1b. scan-matching proposal
         log_w_before = self.log_w.copy() if self.trace is not None else None
+        self.tracker.settle()   # the maps are written next: the tracker has read them
         self._observe(beams)                                    # 2.+3. weights, then grid update
         log_w_step = None if log_w_before is None else self._log_w_step(log_w_before)
         w = self.weights
@@ -223,10 +228,7 @@ class FastSlam:
             self.trace(UpdateTrace(scan.stamp, predicted, self._proposed, log_w_step, w,
                                    n_eff, resampled, parent, path.copy()))   # path may be self.poses: moved later
         self.updates += 1
-        self.live_pose = centre[self.best].copy()
-        self._live_at_update = self.live_pose.copy()
-        self._live_odom = self._match_odom = odom
-        self._last_scan = (odom, scan.ranges)
+        self.tracker.start(centre[self.best], odom, scan.ranges, self.grid.view(self.best))
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
                         entropy=entropy(w), refused=refused)
@@ -266,24 +268,14 @@ class FastSlam:
             self._motion_std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
                                 else odometry_std(self._odom, moved, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
             self._arc = motion_arc(cfg, self._odom, moved)
-        self._path_predicted = None
+        self._path_predicted = self._path_odom = None
         if cfg.path_match_scale > 0 and cfg.proposal == "scan_match" and self.history.latest is not None:
-            if cfg.track_scans:   # the scans' motion since the last update: real odometry jitters by degrees
-                self._path_predicted = compose(self.history.latest, self._tracked_motion(odom))
+            if cfg.track_scans:   # the scans' motion since the last update (_predict_path, once the tracker is done)
+                self._path_odom = odom
             else:
                 self._path_predicted = self.history.latest.copy()
                 self._apply_motion(self._path_predicted, moved, noise=False)
         self._apply_motion(self.poses, moved, noise=bool(cfg.toggle_noise))
-
-    def _tracked_motion(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(3,) the live pose's motion from the last update to this scan: matched at the
-        scans between (track_scans), the odometry's last step into this one."""
-        return relative(self._live_at_update, self._live_moved(odom))
-
-    def _live_moved(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(3,) the live pose moved by the odometry since its last scan, to odometry pose odom."""
-        assert self._live_odom is not None
-        return compose(self.live_pose, relative(self._live_odom, odom))
 
     def _apply_motion(self, poses: NDArray[np.float64], odom: NDArray[np.float64], noise: bool) -> None:
         """Moves poses (N, 3) in place by the configured motion model, sampled or not."""
@@ -294,58 +286,6 @@ class FastSlam:
             sample_motion_assignment(poses, self._odom, odom, sigmas, self.rng)
         else:
             sample_motion_odometry(poses, self._odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt), noise, self.rng)
-
-    def _track(self, odom: NDArray[np.float64], scan: Scan) -> None:
-        """A scan between updates: the live pose moved by the odometry since the last
-        scan and (track_scans) matched against the best particle's map, round that
-        prediction, held to the gate like a proposal; no map write, no weights.
-
-        A stalled odometry (_stalled) is matched round the last pose with STALL_STD; the
-        motion found is then taken as odometry the stall missed (the live pose's odometry
-        moves with it), so the odometry's catch-up step is not counted twice.
-        """
-        cfg = self.cfg
-        assert self._match_odom is not None and self._live_odom is not None
-        stalled = cfg.track_scans and self._stalled(odom, scan)
-        if stalled:   # round the last pose, its odometry kept (it moves with the match below)
-            predicted = self.live_pose.copy()
-        else:
-            predicted = self._live_moved(odom)
-            self.live_pose, self._live_odom = predicted, odom
-        if not cfg.track_scans:
-            return
-        moved = float(np.hypot(*(odom[:2] - self._match_odom[:2])))
-        if not stalled and moved < TRACK_STILL[0] and \
-                abs(float(wrap_angle(odom[2] - self._match_odom[2]))) < TRACK_STILL[1]:
-            return  # (nearly) standing: the last match, moved by the odometry, holds
-        if stalled:
-            std = np.array(STALL_STD)
-        else:
-            std = (np.asarray(cfg.motion_sigmas, dtype=np.float64) if cfg.motion_model == "assignment"
-                   else odometry_std(self._match_odom, odom, (cfg.srr, cfg.srt, cfg.str, cfg.stt)))
-            self._match_odom = odom
-        one = predicted[None, :]
-        start, params, prior = match_request(cfg, self._track_params, one, one, std)
-        grid, beams = self.grid.view(self.best), select_beams(scan, cfg)
-        found = (refine_poses(grid, start, beams, params, prior) if cfg.track_search == "refine"
-                 else match_poses(grid, start, beams, params, prior=prior))
-        match = gate_match(cfg, found, one, std)
-        if match.trusted[0]:
-            self.live_pose = match.poses[0]
-            if stalled:
-                self.stalls += 1
-                self._live_odom = self._match_odom = compose(self._live_odom, relative(predicted, self.live_pose))
-
-    def _stalled(self, odom: NDArray[np.float64], scan: Scan) -> bool:
-        """Whether the odometry is unchanged since the last scan while the scan changed."""
-        if self._last_scan is None:
-            return False
-        last_odom, last_ranges = self._last_scan
-        if len(last_ranges) != len(scan.ranges) or np.any(np.abs(odom - last_odom) > STALL_ODOM):
-            return False
-        both = ((scan.ranges > scan.range_min) & (scan.ranges < scan.range_max)
-                & (last_ranges > scan.range_min) & (last_ranges < scan.range_max))
-        return bool(both.any() and np.median(np.abs(scan.ranges[both] - last_ranges[both])) > STALL_RANGE_CHANGE)
 
     def _cover_beams(self) -> tuple[bool, bool, str]:
         """Grows the maps so every particle's beams stay inside, within the limits (by
@@ -382,6 +322,7 @@ class FastSlam:
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
         match = self._match_gated(beams)
+        self._predict_path()
         if self.odom_scale is not None:
             self._learn_scale(match)
         if self.cfg.match_loop > 0 and self.updates > 1:     # (after one scan nothing was seen long ago)
@@ -396,6 +337,15 @@ class FastSlam:
         else:   # nothing to correct them (path_match_scale): the paths follow their motion, not the noisy particles
             self._path_next = self._path_predicted
         return int(match.trusted.sum())
+
+    def _predict_path(self) -> None:
+        """track_scans: each path's last pose moved by the live pose's motion since the last
+        update, matched at the scans between (real odometry jitters by degrees). Asked after
+        the particles' matches: a tracker in another process works on meanwhile."""
+        if self._path_odom is not None:
+            assert self.history.latest is not None
+            self._path_predicted = compose(self.history.latest, self.tracker.motion_since_update(self._path_odom))
+            self._path_odom = None
 
     def _matcher_spread(self) -> NDArray[np.float64]:
         """(3,) std-devs of the prior the matcher used this update (as its _prior floors them)."""

@@ -375,7 +375,7 @@ def test_tracking_matches_the_scans_between_updates(room_scan, search):
 
 
 def test_tracking_skips_scans_after_less_motion_than_track_still(room_scan):
-    from fastslam.filter.slam import TRACK_STILL
+    from fastslam.filter.track import TRACK_STILL
 
     slam = _tracking(track_search="refine")
     _map_two_scans(slam, room_scan)
@@ -398,7 +398,7 @@ def test_tracking_follows_the_scans_while_the_odometry_stalls(room_scan):
     """CSAIL's odometry repeats its pose for scans while the robot turns: the tracker
     matches those scans round the last pose, and the odometry's catch-up step afterwards
     is not counted a second time."""
-    from fastslam.filter.slam import STALL_RANGE_CHANGE
+    from fastslam.filter.track import STALL_RANGE_CHANGE
 
     slam = _tracking(track_search="refine")
     _map_two_scans(slam, room_scan)

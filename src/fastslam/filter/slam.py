@@ -102,7 +102,7 @@ class FastSlam:
                  limits: Limits | None = None, tracker: Tracker | None = None) -> None:
         self.cfg = cfg
         # the live pose between updates (map->odom); filter/pipeline.py's runs in a second process
-        self.tracker = tracker if tracker is not None else Tracker(cfg, self._track_params_of(cfg))
+        self.tracker = tracker if tracker is not None else Tracker(cfg, self.track_params(cfg))
         self.rng = rng if rng is not None else np.random.default_rng(cfg.rng_seed)
         self.limits = limits if limits is not None else Limits()
         self.refusals = 0  # growths refused (max_map_extent, memory), over every life
@@ -157,7 +157,7 @@ class FastSlam:
         self._path_next: NDArray[np.float64] | None = None
 
     @staticmethod
-    def _track_params_of(cfg: SlamConfig) -> MatchParams:
+    def track_params(cfg: SlamConfig) -> MatchParams:
         """The tracker's matches: the proposal's, on track_beams returns."""
         return replace(MatchParams.from_config(cfg), beams=cfg.track_beams)
 

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import math
 import mmap
+import os
+import weakref
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -47,12 +49,18 @@ PATCH_FACTOR = 16.0
 
 class TilePool:
     """Tiles (T, rows, columns) int8 with reference counts and a free list; id 0 is
-    the unknown tile (zeros, never written, never freed)."""
+    the unknown tile (zeros, never written, never freed).
 
-    def __init__(self, tile: tuple[int, int], capacity: int = 1024) -> None:
+    shared: the tiles live in a memory file (memfd) that another process can map and read
+    (SharedTiles: filter/pipeline.py's tracker), not in private memory.
+    """
+
+    def __init__(self, tile: tuple[int, int], capacity: int = 1024, *, shared: bool = False) -> None:
         self.tile = (int(tile[0]), int(tile[1]))
         self.tile_bytes = self.tile[0] * self.tile[1]
         self.capacity = 0
+        self.shared = shared
+        self.fd = -1              # shared: the memory file, open while the pool lives
         self._map: mmap.mmap | None = None
         self.tiles: NDArray[np.int8] = np.zeros((0,) + self.tile, dtype=LOGODDS_DTYPE)
         self.refs = np.zeros(0, dtype=np.int32)
@@ -72,13 +80,13 @@ class TilePool:
         size = capacity * self.tile_bytes
         self.tiles = np.zeros((0,) + self.tile, dtype=LOGODDS_DTYPE)   # drops the view of the old map
         if self._map is None:
-            self._map = _anonymous(size)
+            self._map = self._memory(size)
         else:
             try:
-                self._map.resize(size)
+                self._map.resize(size)   # (a memory file: grown with it)
             except (BufferError, OSError, SystemError):
                 # a view of the tiles is still alive somewhere (or no mremap): copy instead
-                grown = _anonymous(size)
+                grown = self._memory(size)
                 grown[:len(self._map)] = self._map[:]
                 self._map = grown
         self.tiles = np.frombuffer(self._map, dtype=LOGODDS_DTYPE).reshape((capacity,) + self.tile)
@@ -86,6 +94,16 @@ class TilePool:
         refs[:len(self.refs)] = self.refs
         self.refs = refs
         self.capacity = capacity
+
+    def _memory(self, size: int) -> mmap.mmap:
+        """size bytes of zeros: private, or (shared) a new memory file's."""
+        if not self.shared:
+            return _anonymous(size)
+        fd = os.memfd_create("assign5-tiles", os.MFD_CLOEXEC)
+        weakref.finalize(self, os.close, fd)
+        os.ftruncate(fd, size)
+        self.fd = fd
+        return mmap.mmap(fd, size, flags=mmap.MAP_SHARED)
 
     def alloc(self, k: int) -> NDArray[np.int32]:
         """k tile ids with reference count 1, contents undefined: the free ones first."""
@@ -142,6 +160,43 @@ class TilePool:
         return self.top * self.tile_bytes + int(self.refs.nbytes) + int(self._free.nbytes)
 
 
+def snapshot(maps: TileMaps) -> dict[str, Any]:
+    """What another process needs to read maps (a view, its pool shared) through
+    SharedTiles: the geometry, a copy of the tables, and where the tiles are."""
+    pool = maps.pool
+    if not pool.shared or pool.fd < 0:
+        raise ValueError("the maps' tiles are not shared (TileMaps(..., shared=True))")
+    state = {k: v for k, v in maps.__dict__.items() if k != "pool"}
+    state["table"] = maps.table.copy()
+    state["origin"] = maps.origin.copy()
+    return {"maps": state, "tiles": (os.getpid(), pool.fd, os.fstat(pool.fd).st_ino, pool.capacity, pool.tile)}
+
+
+class SharedTiles:
+    """Another process's shared TilePool, read only: the tiles a snapshot's maps read."""
+
+    def __init__(self) -> None:
+        self.tiles: NDArray[np.int8] = np.zeros((0, 1, 1), dtype=LOGODDS_DTYPE)
+        self._key: tuple[int, int, int] | None = None
+        self._map: mmap.mmap | None = None
+
+    def maps(self, snap: dict[str, Any]) -> TileMaps:
+        """The maps of a snapshot, reading the tiles where they are now."""
+        pid, fd, inode, capacity, tile = snap["tiles"]
+        size = int(capacity) * int(tile[0]) * int(tile[1])
+        if self._key != (pid, fd, inode) or self._map is None or len(self._map) < size:
+            with open(f"/proc/{pid}/fd/{fd}", "rb") as f:   # the same memory file, opened again
+                if os.fstat(f.fileno()).st_ino != inode:
+                    raise OSError(f"the tiles' memory file of process {pid} is gone")
+                self._map = mmap.mmap(f.fileno(), size, flags=mmap.MAP_SHARED, prot=mmap.PROT_READ)
+            self._key = (pid, fd, inode)
+        self.tiles = np.frombuffer(self._map, dtype=LOGODDS_DTYPE, count=size).reshape((-1,) + tuple(tile))
+        some = TileMaps.__new__(TileMaps)
+        some.__dict__.update(snap["maps"])
+        some.pool = self   # type: ignore[assignment]   # reads use pool.tiles only
+        return some
+
+
 def _anonymous(size: int) -> mmap.mmap:
     """Private anonymous memory (a shared one would not grow with resize)."""
     return mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
@@ -154,10 +209,12 @@ class TileMaps(GridMaps):
     Args:
         n, shape, resolution, origin, l_limit: as GridMaps.
         tile: (rows, columns) of a tile, powers of two.
+        shared: the tiles in a memory file other processes can read (TilePool).
     """
 
     def __init__(self, n: int, shape: tuple[int, int], resolution: float,
-                 origin: tuple[float, float], l_limit: float = 5.0, *, tile: tuple[int, int] = TILE) -> None:
+                 origin: tuple[float, float], l_limit: float = 5.0, *, tile: tuple[int, int] = TILE,
+                 shared: bool = False) -> None:
         self._init_geometry(n, shape, resolution, origin, l_limit)
         ty, tx = int(tile[0]), int(tile[1])
         if ty < 1 or tx < 1 or ty & (ty - 1) or tx & (tx - 1):
@@ -167,7 +224,7 @@ class TileMaps(GridMaps):
         self.offset = (0, 0)   # cell (iy, ix) is lattice cell (iy + offset[0], ix + offset[1])
         h, w = self.shape
         self.table = np.zeros((n, -(-h // ty), -(-w // tx)), dtype=np.int32)
-        self.pool = TilePool(self.tile)
+        self.pool = TilePool(self.tile, shared=shared)
 
     # -- memory -----------------------------------------------------------------------
     @staticmethod

@@ -10,7 +10,7 @@ filter/pipeline.py runs the same Tracker in a second process.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -46,6 +46,8 @@ class Tracker:
         self.cfg = cfg
         self.params = params       # the matcher's, on track_beams returns
         self.stalls = 0            # scans tracked with the odometry stalled, over every life
+        # every pose the tracker took, in order, when a list (the offline tool's live poses: ticket)
+        self.timeline: list[NDArray[np.float64]] | None = None
         self.clear()
 
     def clear(self) -> None:
@@ -56,6 +58,7 @@ class Tracker:
         self.match_odom: NDArray[np.float64] | None = None     # ... at its last match
         self.last_scan: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # (odometry, ranges)
         self.grid: GridMaps | None = None                      # the best particle's map since the update
+        self._log()
 
     def start(self, pose: NDArray[np.float64], odom: NDArray[np.float64], ranges: NDArray[np.float64],
               grid: GridMaps) -> None:
@@ -65,6 +68,7 @@ class Tracker:
         self.odom = self.match_odom = odom
         self.last_scan = (odom, ranges)
         self.grid = grid
+        self._log()
 
     def rebase(self, odom: NDArray[np.float64]) -> None:
         """Takes odom as the new reference without moving the pose (after a jump)."""
@@ -93,6 +97,25 @@ class Tracker:
         """
         self._track(odom, scan)
         self.last_scan = (odom, scan.ranges)
+        self._log()
+
+    def _log(self) -> None:
+        if self.timeline is not None:
+            self.timeline.append(self.pose.copy())
+
+    def ticket(self) -> int:
+        """The index in timeline of the pose now (timeline a list)."""
+        assert self.timeline is not None
+        return len(self.timeline) - 1
+
+    def state(self) -> dict[str, Any]:
+        """The pose and what moves it (not the map): load() takes it back."""
+        return {"pose": self.pose, "at_update": self.at_update, "odom": self.odom, "match_odom": self.match_odom,
+                "last_scan": self.last_scan, "stalls": self.stalls}
+
+    def load(self, state: dict[str, Any]) -> None:
+        for key, value in state.items():
+            setattr(self, key, value)
 
     def _track(self, odom: NDArray[np.float64], scan: Scan) -> None:
         cfg = self.cfg

@@ -228,3 +228,30 @@ def test_memory_counts_the_tiles_used_and_the_tables():
     maps.put(np.arange(30), 100, 100, 1)                        # one tile per particle
     assert maps.nbytes - before == 30 * 32 * 64                 # 30 tiles of 2 KiB (their counts were reserved)
     assert GridMaps.bytes_for(30, (2000, 2000)) == 30 * 2000 * 2000
+
+
+def test_shared_tiles_read_a_snapshot_through_the_memory_file_as_the_pool_grows():
+    from fastslam.filter.tiles import SharedTiles, snapshot
+    rng = np.random.default_rng(5)
+    maps = TileMaps(2, (200, 260), 0.05, (-1.0, 2.0), shared=True, tile=(16, 16))
+    maps.pool = TilePool((16, 16), capacity=16, shared=True)   # room for 15 tiles: it must grow
+    reader = SharedTiles()
+    capacities = []
+    for _ in range(3):
+        iy, ix = rng.integers(0, 200, 400), rng.integers(0, 260, 400)
+        maps.put(1, iy, ix, rng.integers(-90, 90, 400).astype(np.int8))
+        seen = reader.maps(snapshot(maps.view(1)))          # as a second process reads it
+        np.testing.assert_array_equal(seen.crop(0, 200, 0, 260), maps.crop(0, 200, 0, 260, 1, 2))
+        assert seen.values(0, iy[:5], ix[:5]).tolist() == maps.values(1, iy[:5], ix[:5]).tolist()
+        capacities.append((maps.pool.capacity, len(reader.tiles)))
+    # 221 tiles in all: the pool grew from 16 and the reader mapped the grown file
+    assert capacities[0][0] > 16 and all(pool <= read for pool, read in capacities), capacities
+    before = seen.crop(0, 200, 0, 260).copy()
+    assert maps.grow_to(-3.0, 0.0, 12.0, 14.0, fraction=0.0)   # the filter's tables change: a snapshot keeps its own
+    np.testing.assert_array_equal(seen.crop(0, 200, 0, 260), before)
+
+
+def test_only_maps_in_shared_memory_can_be_snapshot():
+    from fastslam.filter.tiles import snapshot
+    with pytest.raises(ValueError, match="not shared"):
+        snapshot(TileMaps(1, (64, 64), 0.05, (0.0, 0.0)).view(0))

@@ -1,0 +1,205 @@
+"""The tracker in a second process: the scans between two updates are tracked while the
+particles work on the next update (offline: a third of the ACES bag's time is tracking).
+
+The worker runs a Tracker (filter/track.py) on the same inputs, so the results are the
+same to the bit. It reads the best particle's map from the filter's tiles, shared memory
+(TileMaps(shared=True)): the map does not change between two updates, and the filter
+writes its maps only after waiting for the worker (Tracker.settle, before _observe).
+
+The scans go to the worker as they come; the filter waits only where it needs the pose
+(the paths' prediction, after the particles' matches; an update; a reset). If the worker
+fails or dies, the tracker says why once (failure) and tracks the scans since the last
+wait in this process, then every scan after: the same results, slower.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+from multiprocessing.connection import Connection
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from fastslam.config import SlamConfig
+from fastslam.filter.grid import GridMaps
+from fastslam.filter.scan import Scan
+from fastslam.filter.tiles import SharedTiles, TileMaps, snapshot
+from fastslam.filter.track import Tracker
+from fastslam.match import MatchParams
+
+if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
+    from numpy.typing import NDArray
+
+
+def available() -> bool:
+    """Whether this machine can run the worker: two cores, fork and memory files (Linux)."""
+    return (os.cpu_count() or 1) >= 2 and hasattr(os, "memfd_create") \
+        and "fork" in multiprocessing.get_all_start_methods()
+
+
+class PipelinedTracker(Tracker):
+    """A Tracker whose scans between updates are tracked in a worker process (close() ends it)."""
+
+    shares_maps = True
+
+    def __init__(self, cfg: SlamConfig, params: MatchParams) -> None:
+        self._pose = np.zeros(3)
+        self._stalls = 0
+        self._queued: list[tuple[Any, ...]] = []   # sent since the last wait: tracked here if the worker fails
+        self._tracks = 0                           # ... of them scans
+        self.failure = ""                          # why the worker is not used (empty: it is)
+        self.served = 0                            # scans the worker tracked
+        super().__init__(cfg, params)
+        ctx = multiprocessing.get_context("fork")
+        self._conn, theirs = ctx.Pipe()
+        self._worker = ctx.Process(target=_serve, args=(theirs, self._conn, cfg, params), name="assign5-tracker",
+                                   daemon=True)
+        self._worker.start()
+        theirs.close()
+
+    # what the filter reads waits for the worker first
+    @property
+    def pose(self) -> NDArray[np.float64]:
+        self.settle()
+        return self._pose
+
+    @pose.setter
+    def pose(self, pose: NDArray[np.float64]) -> None:
+        self._pose = pose
+
+    @property
+    def stalls(self) -> int:
+        self.settle()
+        return self._stalls
+
+    @stalls.setter
+    def stalls(self, count: int) -> None:
+        self._stalls = count
+
+    def clear(self) -> None:
+        self.settle()
+        super().clear()
+
+    def start(self, pose: NDArray[np.float64], odom: NDArray[np.float64], ranges: NDArray[np.float64],
+              grid: GridMaps) -> None:
+        self.settle()
+        super().start(pose, odom, ranges, grid)
+        if not self.failure:
+            try:
+                if not isinstance(grid, TileMaps):
+                    raise ValueError("the maps are not tiles")
+                self._send(("start", super().state(), snapshot(grid)))
+            except (ValueError, OSError) as err:
+                self._fail(f"the maps cannot be shared ({err})")
+
+    def track(self, odom: NDArray[np.float64], scan: Scan) -> None:
+        if self.failure:
+            super().track(odom, scan)
+            return
+        self._queued.append(("track", odom, scan))
+        self._tracks += 1
+        self._send(("track", odom, scan))
+
+    def rebase(self, odom: NDArray[np.float64]) -> None:
+        if self.failure:
+            super().rebase(odom)
+            return
+        self._queued.append(("rebase", odom))
+        self._send(("rebase", odom))
+
+    def moved(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
+        self.settle()
+        return super().moved(odom)
+
+    def ticket(self) -> int:
+        return super().ticket() + self._tracks
+
+    def state(self) -> dict[str, Any]:
+        self.settle()
+        return super().state()
+
+    def settle(self) -> None:
+        """Waits for the worker: the poses of the scans sent since the last wait."""
+        if not self._queued:
+            return
+        if not self.failure:
+            try:
+                self._conn.send(("sync",))
+                reply = self._conn.recv()
+            except (EOFError, OSError) as err:
+                reply = ("error", f"{type(err).__name__}: {err}")
+            if reply[0] == "state":
+                super().load(reply[1])
+                if self.timeline is not None:
+                    self.timeline.extend(reply[2])
+                self.served += self._tracks
+                self._queued, self._tracks = [], 0
+                return
+            self._fail(f"the tracking process failed ({reply[1]})")
+        self._replay()
+
+    def close(self) -> None:
+        """Ends the worker; what it was sent since the last wait is dropped (settle first to keep it)."""
+        if self._worker.is_alive():
+            try:
+                self._conn.send(("stop",))
+            except OSError:
+                pass
+            self._worker.join(timeout=5)
+            if self._worker.is_alive():
+                self._worker.terminate()
+                self._worker.join()
+        self._conn.close()
+        self.failure = self.failure or "closed"
+
+    def _send(self, message: tuple[Any, ...]) -> None:
+        try:
+            self._conn.send(message)
+        except OSError as err:   # the worker is gone: what it was sent is tracked here at the next wait
+            self._fail(f"the tracking process is gone ({type(err).__name__}: {err})")
+
+    def _fail(self, why: str) -> None:
+        if not self.failure:
+            self.failure = why
+        if self._worker.is_alive():
+            self._worker.terminate()
+
+    def _replay(self) -> None:
+        """The scans the worker did not give back, tracked here."""
+        queued, self._queued, self._tracks = self._queued, [], 0
+        for message in queued:
+            if message[0] == "track":
+                super().track(message[1], message[2])
+            else:
+                super().rebase(message[1])
+
+
+def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: MatchParams) -> None:
+    """The worker: a Tracker fed by conn's messages, in order."""
+    filters_end.close()   # so that the filter's end of the pipe closing ends this one
+    tracker = Tracker(cfg, params)
+    tracker.timeline = []
+    tiles = SharedTiles()
+    try:
+        while True:
+            message = conn.recv()
+            kind = message[0]
+            if kind == "track":
+                tracker.track(message[1], message[2])
+            elif kind == "rebase":
+                tracker.rebase(message[1])
+            elif kind == "start":
+                tracker.load(message[1])
+                tracker.grid = tiles.maps(message[2])
+            elif kind == "sync":
+                conn.send(("state", tracker.state(), tracker.timeline))
+                tracker.timeline = []
+            else:
+                return
+    except (EOFError, KeyboardInterrupt, BrokenPipeError):
+        return
+    except Exception as err:  # reported to the filter, which then tracks in its own process
+        try:
+            conn.send(("error", f"{type(err).__name__}: {err}"))
+        except OSError:
+            pass

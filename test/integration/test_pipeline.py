@@ -1,0 +1,84 @@
+"""Tracking in a second process (filter/pipeline.py) gives the results of tracking in this one, to the bit."""
+import os
+
+import numpy as np
+import pytest
+
+from fastslam import offline, simrun
+from fastslam.config import SlamConfig
+from fastslam.filter import track
+from fastslam.filter.pipeline import PipelinedTracker
+from fastslam.io.bag_reader import read_bag
+from fastslam.io.bag_writer import write_bag
+from fastslam.transforms import StaticTransform
+
+
+@pytest.fixture(scope="module")
+def sim_data(tmp_path_factory):
+    direct = simrun.run("room", SlamConfig.from_yaml("config/slam.yaml", {"seed": 0, "particles": 4}), seed=0,
+                        record=True, max_time=20.0)
+    bag = write_bag(tmp_path_factory.mktemp("pipeline") / "sim.bag", direct.scans, direct.odoms,
+                    static_transforms=[StaticTransform.planar("base_footprint", "base_scan", x=-0.032)])
+    return read_bag(bag)
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    # 0.2 m / 0.3 rad gating: a few scans tracked between updates
+    return SlamConfig.from_yaml("config/real.yaml", {"seed": 1, "particles": 5, "linear_update": 0.2,
+                                                     "angular_update": 0.3, "map_width": 10, "map_height": 10})
+
+
+@pytest.fixture(scope="module")
+def serial(sim_data, cfg):
+    return offline.run_bag(sim_data, cfg)
+
+
+def _assert_same(run, serial):
+    np.testing.assert_array_equal(run.live_poses(), serial.live_poses())
+    np.testing.assert_array_equal(run.scan_trajectory(), serial.scan_trajectory())
+    np.testing.assert_array_equal(run.slam.trajectory(), serial.slam.trajectory())
+    np.testing.assert_array_equal(run.slam.best_occupancy(), serial.slam.best_occupancy())
+    assert run.slam.stalls == serial.slam.stalls
+
+
+def test_the_second_process_tracks_every_scan_between_updates_to_the_same_bits(sim_data, cfg, serial):
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    tracked = run.scans - run.updates
+    assert tracked > 50 and run.slam.tracker.served == tracked and not run.events
+    _assert_same(run, serial)
+    # the poses between updates came from the matcher (not the odometry alone)
+    assert not np.array_equal(serial.live_poses(), offline.run_bag(sim_data, cfg.replace(track_scans=False))
+                              .live_poses())
+
+
+def test_a_killed_tracking_process_leaves_the_results_as_they_were(sim_data, cfg, serial, monkeypatch):
+    start, starts = PipelinedTracker.start, []
+
+    def start_then_kill(self, *args):
+        start(self, *args)
+        starts.append(self)
+        if len(starts) == 6:      # the worker holds the map of update 6 and is sent the scans after it
+            self._worker.kill()
+            self._worker.join()
+    monkeypatch.setattr(PipelinedTracker, "start", start_then_kill)
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    assert 0 < run.slam.tracker.served < run.scans - run.updates
+    assert any("tracked in this process" in e and "tracking process" in e for e in run.events), run.events
+    _assert_same(run, serial)
+
+
+def test_an_error_in_the_tracking_process_is_reported_and_its_scans_tracked_here(sim_data, cfg, serial,
+                                                                                 monkeypatch):
+    home, track_scan, calls = os.getpid(), track.Tracker.track, []
+
+    def fails_in_the_worker(self, odom, scan):
+        calls.append(1)
+        if os.getpid() != home and len(calls) == 30:
+            raise RuntimeError("broken on purpose")
+        track_scan(self, odom, scan)
+    monkeypatch.setattr(track.Tracker, "track", fails_in_the_worker)
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    assert any("RuntimeError: broken on purpose" in e for e in run.events), run.events
+    assert 0 < run.slam.tracker.served < run.scans - run.updates
+    _assert_same(run, serial)

@@ -29,10 +29,10 @@ RPE of trajectory.txt as ``python -m fastslam.evaluate REF DIR/trajectory.txt`` 
 them, map.png draws the reference too, and error.png plots both paths after alignment
 and the error over time. A progress bar (tqdm) runs on a terminal, unless --quiet.
 
-With track_scans, on a machine of two cores or more, the scans between updates are
-tracked in a second process while the particles work on the next update
-(filter/pipeline.py): the same results to the bit, in less wall time; --serial keeps
-them in this one.
+With track_scans, on a machine of two cores or more, a second process tracks the scans
+between updates while the particles work on the next update, and matches some of the
+particles (filter/pipeline.py): the same results to the bit, in less wall time;
+--serial keeps all the work in this one.
 """
 from __future__ import annotations
 
@@ -345,8 +345,9 @@ def main(argv: list[str] | None = None) -> int:
                              "default: the bag's /ground_truth, if any")
     parser.add_argument("--quiet", action="store_true", help="no progress bar (there is none off a terminal)")
     parser.add_argument("--serial", action="store_true",
-                        help="track the scans between updates in this process (default with track_scans, on a "
-                             "machine of two cores or more: a second process, the same results)")
+                        help="all the work in this process (default with track_scans, on a machine of two cores or "
+                             "more: a second process tracks the scans between updates and matches some particles; "
+                             "the same results)")
     args = parser.parse_args(argv)
     out = Path(args.out)
     try:

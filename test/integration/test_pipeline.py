@@ -1,4 +1,5 @@
-"""Tracking in a second process (filter/pipeline.py) gives the results of tracking in this one, to the bit."""
+"""Tracking, and matching some particles, in a second process (filter/pipeline.py) gives the results
+of doing it all in this one, to the bit."""
 import os
 
 import numpy as np
@@ -46,10 +47,19 @@ def test_the_second_process_tracks_every_scan_between_updates_to_the_same_bits(s
     run = offline.run_bag(sim_data, cfg, pipeline=True)
     tracked = run.scans - run.updates
     assert tracked > 50 and run.slam.tracker.served == tracked and not run.events
+    assert run.slam.tracker.matched > 0   # how many depends on the time each process takes (not the results)
     _assert_same(run, serial)
     # the poses between updates came from the matcher (not the odometry alone)
     assert not np.array_equal(serial.live_poses(), offline.run_bag(sim_data, cfg.replace(track_scans=False))
                               .live_poses())
+
+
+def test_any_share_of_the_particles_matched_in_the_second_process_gives_the_same_bits(sim_data, cfg, serial,
+                                                                                       monkeypatch):
+    monkeypatch.setattr(PipelinedTracker, "share", lambda self, n: n - 1 - len(self._queued) % 3)
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    assert run.slam.tracker.matched >= 2 * (run.updates - 1) and not run.events
+    _assert_same(run, serial)
 
 
 def test_a_killed_tracking_process_leaves_the_results_as_they_were(sim_data, cfg, serial, monkeypatch):

@@ -1,20 +1,25 @@
 """The tracker in a second process: the scans between two updates are tracked while the
-particles work on the next update (offline: a third of the ACES bag's time is tracking).
+particles work on the next update (offline: a third of the ACES bag's time is tracking),
+and the worker matches some of the particles of each update (match_poses's helper) while
+the filter matches the others: as many as leave both about as busy (share).
 
 The worker runs a Tracker (filter/track.py) on the same inputs, so the results are the
 same to the bit. It reads the best particle's map from the filter's tiles, shared memory
 (TileMaps(shared=True)): the map does not change between two updates, and the filter
 writes its maps only after waiting for the worker (Tracker.settle, before _observe).
 
-The scans go to the worker as they come; the filter waits only where it needs the pose
-(the paths' prediction, after the particles' matches; an update; a reset). If the worker
-fails or dies, the tracker says why once (failure) and tracks the scans since the last
-wait in this process, then every scan after: the same results, slower.
+Each particle's match is its own (the search window is the whole set's), so the share
+changes no result. The scans go to the worker as they come; the filter waits only where
+it needs the pose (the paths' prediction, after the particles' matches; an update; a
+reset) or the worker's matches. If the worker fails or dies, the tracker says why once
+(failure) and does its work in this process from then on, the scans since the last wait
+first: the same results, slower.
 """
 from __future__ import annotations
 
 import multiprocessing
 import os
+import time
 from multiprocessing.connection import Connection
 from typing import TYPE_CHECKING, Any
 
@@ -26,9 +31,16 @@ from fastslam.filter.scan import Scan
 from fastslam.filter.tiles import SharedTiles, TileMaps, snapshot
 from fastslam.filter.track import Tracker
 from fastslam.match import MatchParams
+from fastslam.match.matcher import match_some
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
+
+    from fastslam.match.matcher import MatchPart
+
+# Timing estimates (exponential means) start here and follow each update by this much
+FIRST_SHARE = 1 / 3    # of the particles handed over before any time is measured
+SMOOTHING = 0.2
 
 
 def available() -> bool:
@@ -42,6 +54,11 @@ class PipelinedTracker(Tracker):
 
     shares_maps = True
 
+    @property
+    def helper(self) -> PipelinedTracker | None:   # type: ignore[override]
+        """This tracker matches particles too while its worker lives."""
+        return None if self.failure else self
+
     def __init__(self, cfg: SlamConfig, params: MatchParams) -> None:
         self._pose = np.zeros(3)
         self._stalls = 0
@@ -49,6 +66,12 @@ class PipelinedTracker(Tracker):
         self._tracks = 0                           # ... of them scans
         self.failure = ""                          # why the worker is not used (empty: it is)
         self.served = 0                            # scans the worker tracked
+        self.matched = 0                           # particles the worker matched
+        self._per_scan = 0.0                       # [s] the worker's tracking of one scan, on average
+        self._per_particle = 0.0                   # [s] the filter's matching of one particle, on average
+        self._handed: tuple[int, int, float] | None = None   # particles handed over, kept here, when
+        self._particles = 0                        # the particles of the last share()
+        self._free_at = 0.0                        # [s] when the worker will have tracked what it was sent
         super().__init__(cfg, params)
         ctx = multiprocessing.get_context("fork")
         self._conn, theirs = ctx.Pipe()
@@ -99,6 +122,7 @@ class PipelinedTracker(Tracker):
         self._queued.append(("track", odom, scan))
         self._tracks += 1
         self._send(("track", odom, scan))
+        self._free_at = max(self._free_at, time.perf_counter()) + self._per_scan
 
     def rebase(self, odom: NDArray[np.float64]) -> None:
         if self.failure:
@@ -133,10 +157,49 @@ class PipelinedTracker(Tracker):
                 if self.timeline is not None:
                     self.timeline.extend(reply[2])
                 self.served += self._tracks
+                if self._tracks:
+                    self._per_scan = _mean(self._per_scan, reply[3] / self._tracks)
                 self._queued, self._tracks = [], 0
                 return
             self._fail(f"the tracking process failed ({reply[1]})")
         self._replay()
+
+    # -- matching some particles (match.matcher.Helper) --------------------------------
+    def share(self, n: int) -> int:
+        """The particles to hand over: as many as leave the worker, after the scans it
+        still has to track, as busy as this process (the results do not depend on it)."""
+        self._particles = n
+        if self.failure or n < 2:
+            return 0
+        if self._per_particle <= 0:
+            return int(n * FIRST_SHARE)
+        backlog = max(0.0, self._free_at - time.perf_counter())
+        return int(np.clip(round((n * self._per_particle - backlog) / (2 * self._per_particle)), 0, n // 2))
+
+    def submit(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> None:
+        try:
+            if not isinstance(grid, TileMaps):
+                raise ValueError("the maps are not tiles")
+            self._send(("match", snapshot(grid), args, size))
+        except (ValueError, OSError) as err:
+            self._fail(f"the maps cannot be shared ({err})")
+        self._handed = (grid.particles, self._particles - grid.particles, time.perf_counter())
+
+    def result(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> MatchPart:
+        assert self._handed is not None
+        handed, kept, since = self._handed
+        if kept > 0:   # the filter matched its own meanwhile
+            self._per_particle = _mean(self._per_particle, (time.perf_counter() - since) / kept)
+        if not self.failure:
+            try:
+                reply = self._conn.recv()
+            except (EOFError, OSError) as err:
+                reply = ("error", f"{type(err).__name__}: {err}")
+            if reply[0] == "matched":
+                self.matched += handed
+                return reply[1]
+            self._fail(f"the tracking process failed ({reply[1]})")
+        return match_some(grid, args, size)
 
     def close(self) -> None:
         """Ends the worker; what it was sent since the last wait is dropped (settle first to keep it)."""
@@ -180,20 +243,25 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
     tracker = Tracker(cfg, params)
     tracker.timeline = []
     tiles = SharedTiles()
+    busy = 0.0   # [s] tracking since the last sync
     try:
         while True:
             message = conn.recv()
             kind = message[0]
             if kind == "track":
+                began = time.perf_counter()
                 tracker.track(message[1], message[2])
+                busy += time.perf_counter() - began
             elif kind == "rebase":
                 tracker.rebase(message[1])
             elif kind == "start":
                 tracker.load(message[1])
                 tracker.grid = tiles.maps(message[2])
             elif kind == "sync":
-                conn.send(("state", tracker.state(), tracker.timeline))
-                tracker.timeline = []
+                conn.send(("state", tracker.state(), tracker.timeline, busy))
+                tracker.timeline, busy = [], 0.0
+            elif kind == "match":
+                conn.send(("matched", match_some(tiles.maps(message[1]), message[2], message[3])))
             else:
                 return
     except (EOFError, KeyboardInterrupt, BrokenPipeError):
@@ -203,3 +271,8 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
             conn.send(("error", f"{type(err).__name__}: {err}"))
         except OSError:
             pass
+
+
+def _mean(mean: float, value: float) -> float:
+    """An exponential mean (the value itself at first)."""
+    return value if mean <= 0 else mean + SMOOTHING * (value - mean)

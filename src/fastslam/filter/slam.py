@@ -419,7 +419,8 @@ class FastSlam:
         arc = None if self._arc is None else self._arc.widened(wider)
         start, params, prior = match_request(self.cfg, self._match_params, self.poses, self._predicted, motion_std)
         origin = None if self._before is None else self._before[:, :2]   # where the step began
-        match = match_poses(self.grid, start, beams, params, prior=prior, arc=arc, origin=origin)
+        match = match_poses(self.grid, start, beams, params, prior=prior, arc=arc, origin=origin,
+                            helper=self.tracker.helper)
         return gate_match(self.cfg, match, self._predicted, motion_std, arc)
 
     def _sample_around(self, match: Match) -> None:

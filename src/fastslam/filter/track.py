@@ -21,6 +21,7 @@ from fastslam.filter.proposal import gate_match, match_request
 from fastslam.filter.scan import Scan, select_beams
 from fastslam.geometry import compose, relative, wrap_angle
 from fastslam.match import MatchParams, match_poses, refine_poses
+from fastslam.match.matcher import Helper
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -41,6 +42,7 @@ class Tracker:
     """The live pose (3,) and what moves it between updates, in this process."""
 
     shares_maps = False   # whether the filter's maps must live in memory other processes can map
+    helper: Helper | None = None   # another process matching some particles (filter/pipeline.py)
 
     def __init__(self, cfg: SlamConfig, params: MatchParams) -> None:
         self.cfg = cfg

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Optional, Protocol, Tuple
 
 import numpy as np
 
@@ -47,6 +47,10 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
 
     from fastslam.filter.motion import OdometryArc
+
+    # _match_some's result: poses, trusted, covariance, score, scan information, free share
+    MatchPart = Tuple[NDArray[np.float64], NDArray[np.bool_], Optional[NDArray[np.float64]], NDArray[np.float64],
+                      Optional[NDArray[np.float64]], Optional[NDArray[np.float64]]]
 
 
 MIN_BEAMS = 10         # fewer returns than this: nothing to match
@@ -114,16 +118,32 @@ class Match:
     beyond_gate: NDArray[np.bool_] | None = None
 
 
+class Helper(Protocol):
+    """Another process that matches some particles (filter/pipeline.py): the same
+    _match_some on the same window, so the same results to the bit."""
+
+    def share(self, n: int) -> int:
+        """How many of n particles (the last ones) to hand over now."""
+
+    def submit(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> None:
+        """Starts _match_some(grid, *args) in chunks of size particles."""
+
+    def result(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> MatchPart:
+        """Its result (computed here with the same arguments if the helper failed)."""
+
+
 def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params: MatchParams,
                 prior: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-                arc: OdometryArc | None = None, origin: NDArray[np.float64] | None = None) -> Match:
+                arc: OdometryArc | None = None, origin: NDArray[np.float64] | None = None, *,
+                helper: Helper | None = None) -> Match:
     """Matches the beams of one scan from each pose (N, 3) against that particle's map.
 
     prior: (centre (N, 3), std-devs (3,) along, across, heading) of the odometry prior;
     None: centred on poses with half the search window as std-devs. arc: the searches
     weigh candidates by the step's odometry model in its own terms about the centre
     instead (the ICP keeps the Gaussian: it starts from the searches' pick). origin: (N, 2)
-    where each particle's step began, for params.prior_bearing (None: off).
+    where each particle's step began, for params.prior_bearing (None: off). helper: matches
+    the last particles meanwhile (each particle's result is its own: the same to the bit).
     """
     n = len(poses)
     nothing = Match(poses=poses.copy(), trusted=np.zeros(n, dtype=bool))
@@ -149,14 +169,38 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     # Particles in chunks whose pooled maps stay within MATCH_BYTES: a window across a
     # large building would otherwise take tens of MB.
     size = max(1, MATCH_BYTES // ((x1 - x0) * (y1 - y0) * 5 // 16))     # pooled maps (half, quarter) per particle
-    found = [_match_some(grid.view(a, min(n, a + size)), poses[a:a + size], centre[a:a + size], spread, local,
-                         icp_points, (x0, y0, x1, y1), k0, ka, dth, params, arc,
-                         None if origin is None else origin[a:a + size])
-             for a in range(0, n, size)]
+
+    def args(a: int, b: int) -> tuple[Any, ...]:
+        return (poses[a:b], centre[a:b], spread, local, icp_points, (x0, y0, x1, y1), k0, ka, dth, params, arc,
+                None if origin is None else origin[a:b])
+    here = n - (helper.share(n) if helper is not None else 0)
+    if here < n:
+        assert helper is not None
+        helper.submit(grid.view(here, n), args(here, n), size)
+    found = [_match_some(grid.view(a, min(here, a + size)), *args(a, min(here, a + size)))
+             for a in range(0, here, size)]
+    if here < n:
+        assert helper is not None
+        found.append(helper.result(grid.view(here, n), args(here, n), size))
     pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
     cov, info, free = (None if found[0][i] is None else np.concatenate([f[i] for f in found]) for i in (2, 4, 5))
     return Match(poses=pose, trusted=trusted, covariance=cov, score=score, scan_information=info,
                  icp_points=0 if icp_points is None else len(icp_points[0]), free=free)
+
+
+def match_some(grid: GridMaps, args: tuple[Any, ...], size: int) -> MatchPart:
+    """_match_some(grid, *args) in chunks of size particles, joined (a helper's share)."""
+    n = grid.particles
+    parts = [_match_some(grid.view(a, min(n, a + size)), *_sliced(args, a, min(n, a + size)))
+             for a in range(0, n, size)]
+    return tuple(None if parts[0][i] is None else np.concatenate([p[i] for p in parts])   # type: ignore[return-value]
+                 for i in range(6))
+
+
+def _sliced(args: tuple[Any, ...], a: int, b: int) -> tuple[Any, ...]:
+    """_match_some's arguments for its particles a..b-1 (poses, centre, origin are per particle)."""
+    poses, centre, *rest, origin = args
+    return (poses[a:b], centre[a:b], *rest, None if origin is None else origin[a:b])
 
 
 # numpy >= 1.22 interpolates a quantile as far_range does (numpy.lib.function_base._lerp);

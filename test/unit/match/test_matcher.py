@@ -202,3 +202,41 @@ def test_far_range_is_the_90th_percentile_of_the_ranges_as_numpy_gives_it():
     for m in (2, 3, 37, 60, 180, 361):
         local = rng.normal(0.0, 5.0, (m, 2))
         assert far_range(local) == float(np.percentile(np.hypot(local[:, 0], local[:, 1]), 90))   # to the bit
+
+
+class _Helper:
+    """match.matcher.Helper in this process: hands over the last `k` particles."""
+
+    def __init__(self, k: int, fails: bool = False) -> None:
+        self.k, self.fails, self.handed = k, fails, []
+
+    def share(self, n: int) -> int:
+        return self.k
+
+    def submit(self, grid, args, size) -> None:
+        from fastslam.match.matcher import match_some
+        self.handed.append((grid.particles, len(args[0])))
+        self.part = None if self.fails else match_some(grid, args, size)
+
+    def result(self, grid, args, size):
+        from fastslam.match.matcher import match_some
+        return match_some(grid, args, size) if self.part is None else self.part
+
+
+@pytest.mark.parametrize("k", [1, 3, 4, 6])
+def test_particles_handed_to_a_helper_match_to_the_same_bits(mapped_room, scan360, k):
+    slam, _ = mapped_room(particles=7)
+    cfg = slam.cfg.replace(match_prior="motion", match_refine="icp", match_spread="match")
+    params = MatchParams.from_config(cfg)
+    truth = np.array([0.2, -0.3, 0.4])
+    rng = np.random.default_rng(3)
+    poses = truth + rng.normal(0.0, [0.06, 0.06, 0.04], (7, 3))
+    prior = (poses.copy(), np.array([0.05, 0.05, 0.05]))
+    beams = select_beams(scan360(truth), cfg)
+    alone = match_poses(slam.grid, poses, beams, params, prior=prior)
+    for helper in (_Helper(k), _Helper(k, fails=True)):
+        shared = match_poses(slam.grid, poses, beams, params, prior=prior, helper=helper)
+        assert helper.handed == [(k, k)]                     # the last k particles, their maps and poses
+        for field in ("poses", "trusted", "covariance", "score", "scan_information", "free"):
+            np.testing.assert_array_equal(getattr(shared, field), getattr(alone, field))
+    assert alone.trusted.sum() >= 5 and np.abs(alone.poses[alone.trusted, :2] - truth[:2]).max() < 0.02

@@ -5,7 +5,8 @@
 
 Every case runs `python -m fastslam.offline BAG --out DIR --config ... --seed S`, the
 command a user runs, in its own process, one at a time (`--jobs N`: N at a time, for
-judging a change on many seeds; the time targets stand only at one at a time). Seeds
+judging a change on many seeds, each with `--serial`, the same results in one process;
+the time targets stand only at one at a time). Seeds
 are numbers or ranges: `--seeds 0-11 20`. `--phases 0-3` runs every case at each phase
 of the matcher's pooling blocks (`python -m bench.phase K ...`; phase 0 is the offline
 tool itself): on the two bags the seeds leave the blocks where they are, so judge a
@@ -56,12 +57,14 @@ TARGET_ATE_MEDIAN, TARGET_ATE_WORST = 0.15, 0.5        # [m]
 CACHE = ROOT / "out" / "bench-accuracy"                # converted bags, reused between runs
 
 
-def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str], phase: int = 0) -> dict:
+def run_offline(bag: Path, out: Path, config: Path, seed: int, sets: list[str], phase: int = 0,
+                serial: bool = False) -> dict:
     """The offline tool on bag in its own process (phase: with the matcher's blocks moved,
-    bench.phase); its stats plus the command's wall time."""
+    bench.phase; serial: --serial, all its work in one process); its stats plus the
+    command's wall time."""
     tool = ["fastslam.offline"] if phase == 0 else ["bench.phase", str(phase)]
     cmd = [sys.executable, "-m", *tool, str(bag), "--out", str(out), "--config", str(config),
-           "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)]
+           "--seed", str(seed), "--quiet"] + [a for s in sets for a in ("--set", s)] + ["--serial"] * serial
     with open(out.with_name(out.name + ".stderr"), "w+") as err:
         start = time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=_env())
@@ -117,10 +120,11 @@ def converted(log: str, seed: int, level: float = 1.0) -> Path:
     return bag
 
 
-def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path, phase: int = 0) -> dict:
+def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path, phase: int = 0,
+              serial: bool = False) -> dict:
     stem = REAL[name]
     out = work / f"{name}-{seed}-p{phase}"
-    row = run_offline(data_path(f"{stem}.bag"), out, config, seed, sets, phase)
+    row = run_offline(data_path(f"{stem}.bag"), out, config, seed, sets, phase, serial)
     rel = read_relations(data_path(f"{stem}.relations"))
     t, p = read_trajectory(out / "trajectory_scans.txt")
     s = relations_score(t, p, rel)
@@ -133,10 +137,11 @@ def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path, p
             "smoothed_max": sm.trans_max, **row}
 
 
-def corrected_case(name: str, seed: int, config: Path, sets: list[str], work: Path, phase: int = 0) -> dict:
+def corrected_case(name: str, seed: int, config: Path, sets: list[str], work: Path, phase: int = 0,
+                   serial: bool = False) -> dict:
     bag = converted(name, seed)
     out = work / f"{name}-{seed}-p{phase}"
-    row = run_offline(bag, out, config, seed, sets, phase)
+    row = run_offline(bag, out, config, seed, sets, phase, serial)
     ref_t, ref = read_trajectory(bag.with_name(bag.name + ".gt.txt"))
     t, p = read_trajectory(out / "trajectory_scans.txt")
     _, r, e = match_by_time(ref_t, ref, t, p, max_dt=1e-4)
@@ -213,7 +218,8 @@ def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], 
         if failed.is_set():   # (the bench meets the failure before any case skipped after it)
             raise CancelledError(f"{name} seed {seed}{f' phase {phase}' if phase else ''}: not run after a failed case")
         try:
-            return (real_case if name in REAL else corrected_case)(name, seed, config, sets, work, phase)
+            # cases side by side keep the cores busy: each runs in one process (the same results)
+            return (real_case if name in REAL else corrected_case)(name, seed, config, sets, work, phase, jobs > 1)
         except BaseException:
             failed.set()
             raise

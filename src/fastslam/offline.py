@@ -100,6 +100,7 @@ class OfflineResult:
     scan_rows: list[list[float]] = field(default_factory=list)
     reference: Reference | None = None
     accuracy: dict[str, Any] | None = None   # against the reference, set by write_results
+    second_process: dict[str, Any] | None = None   # what the pipeline's worker did (None: no worker)
 
     def live_poses(self) -> NDArray[np.float64]:
         """(S, 4) rows t, x, y, theta: map->odom composed with the odometry at every scan."""
@@ -148,7 +149,7 @@ class OfflineResult:
                 "match_loops": self.slam.loops,
                 "odometry_scale": None if self.slam.odom_scale is None else self.slam.odom_scale.summary(),
                 "odometry_stalls_tracked": self.slam.stalls, "matches_beyond_gate": self.slam.beyond_gate,
-                "resets": len(self.reset_maps),
+                "resets": len(self.reset_maps), "second_process": self.second_process,
                 **({"accuracy": self.accuracy} if self.accuracy is not None else {})}
 
 
@@ -223,8 +224,11 @@ def _run(data: BagData, cfg: SlamConfig, progress: bool, limits: Limits | None,
     timeline = slam.tracker.timeline
     for row, k in zip(result.scan_rows, tickets):
         row[4:7] = timeline[k].tolist()
-    if tracker is not None and tracker.failure:
-        result.events.append(f"scans between updates tracked in this process: {tracker.failure}")
+    if tracker is not None:
+        if tracker.failure:
+            result.events.append(f"scans between updates tracked in this process: {tracker.failure}")
+        result.second_process = {"scans_tracked": tracker.served, "particles_matched": tracker.matched,
+                                 "failure": tracker.failure}
     result.wall_seconds = time.perf_counter() - start
     result.rules = dict(front.counts)
     return result

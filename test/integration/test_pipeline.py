@@ -15,12 +15,16 @@ from fastslam.transforms import StaticTransform
 
 
 @pytest.fixture(scope="module")
-def sim_data(tmp_path_factory):
+def sim_bag(tmp_path_factory):
     direct = simrun.run("room", SlamConfig.from_yaml("config/slam.yaml", {"seed": 0, "particles": 4}), seed=0,
                         record=True, max_time=20.0)
-    bag = write_bag(tmp_path_factory.mktemp("pipeline") / "sim.bag", direct.scans, direct.odoms,
-                    static_transforms=[StaticTransform.planar("base_footprint", "base_scan", x=-0.032)])
-    return read_bag(bag)
+    return write_bag(tmp_path_factory.mktemp("pipeline") / "sim.bag", direct.scans, direct.odoms,
+                     static_transforms=[StaticTransform.planar("base_footprint", "base_scan", x=-0.032)])
+
+
+@pytest.fixture(scope="module")
+def sim_data(sim_bag):
+    return read_bag(sim_bag)
 
 
 @pytest.fixture(scope="module")
@@ -92,3 +96,21 @@ def test_an_error_in_the_tracking_process_is_reported_and_its_scans_tracked_here
     assert any("RuntimeError: broken on purpose" in e for e in run.events), run.events
     assert 0 < run.slam.tracker.served < run.scans - run.updates
     _assert_same(run, serial)
+
+
+def test_the_command_uses_the_second_process_and_serial_writes_the_same_files(sim_bag, tmp_path, monkeypatch):
+    import json
+
+    bag = sim_bag
+    monkeypatch.setattr(offline, "available", lambda: True)   # (a one-core machine would run serial)
+    common = [str(bag), "--config", "config/real.yaml", "--seed", "1", "--quiet", "--set", "particles=5",
+              "--set", "linear_update=0.2", "--set", "map_width=10", "--set", "map_height=10"]
+    assert offline.main(common + ["--out", str(tmp_path / "two")]) == 0
+    assert offline.main(common + ["--out", str(tmp_path / "one"), "--serial"]) == 0
+    two, one = (json.loads((tmp_path / d / "stats.json").read_text()) for d in ("two", "one"))
+    assert one["second_process"] is None
+    worker = two["second_process"]
+    assert worker["scans_tracked"] == two["scans"] - two["updates"] > 20 and worker["particles_matched"] > 0
+    assert worker["failure"] == ""
+    for name in ("trajectory.txt", "trajectory_scans.txt", "live_poses.txt", "trajectory_smoothed.txt", "map.pgm"):
+        assert (tmp_path / "two" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name

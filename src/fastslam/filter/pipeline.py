@@ -44,9 +44,10 @@ SMOOTHING = 0.2
 
 
 def available() -> bool:
-    """Whether this machine can run the worker: two cores, fork and memory files (Linux)."""
-    return (os.cpu_count() or 1) >= 2 and hasattr(os, "memfd_create") \
-        and "fork" in multiprocessing.get_all_start_methods()
+    """Whether this machine can run the worker: two cores for this process (its CPU
+    affinity, as taskset and containers set it), fork and memory files (Linux)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return cores >= 2 and hasattr(os, "memfd_create") and "fork" in multiprocessing.get_all_start_methods()
 
 
 class PipelinedTracker(Tracker):

@@ -28,7 +28,7 @@ import numpy as np
 from fastslam.config import SlamConfig
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Scan
-from fastslam.filter.tiles import SharedTiles, TileMaps, snapshot
+from fastslam.filter.tiles import SharedTiles, snapshot
 from fastslam.filter.track import Tracker
 from fastslam.match import MatchParams
 from fastslam.match.matcher import match_some
@@ -105,14 +105,12 @@ class PipelinedTracker(Tracker):
         super().clear()
 
     def start(self, pose: NDArray[np.float64], odom: NDArray[np.float64], ranges: NDArray[np.float64],
-              grid: GridMaps) -> None:
+              maps: GridMaps, best: int) -> None:
         self.settle()
-        super().start(pose, odom, ranges, grid)
+        super().start(pose, odom, ranges, maps, best)
         if not self.failure:
             try:
-                if not isinstance(grid, TileMaps):
-                    raise ValueError("the maps are not tiles")
-                self._send(("start", super().state(), snapshot(grid)))
+                self._send(("start", super().state(), snapshot(maps.view(best))))
             except (ValueError, OSError) as err:
                 self._fail(f"the maps cannot be shared ({err})")
 
@@ -179,8 +177,6 @@ class PipelinedTracker(Tracker):
 
     def submit(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> None:
         try:
-            if not isinstance(grid, TileMaps):
-                raise ValueError("the maps are not tiles")
             self._send(("match", snapshot(grid), args, size))
         except (ValueError, OSError) as err:
             self._fail(f"the maps cannot be shared ({err})")

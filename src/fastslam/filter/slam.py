@@ -228,7 +228,7 @@ class FastSlam:
             self.trace(UpdateTrace(scan.stamp, predicted, self._proposed, log_w_step, w,
                                    n_eff, resampled, parent, path.copy()))   # path may be self.poses: moved later
         self.updates += 1
-        self.tracker.start(centre[self.best], odom, scan.ranges, self.grid.view(self.best))
+        self.tracker.start(centre[self.best], odom, scan.ranges, self.grid, self.best)
         return StepInfo(processed=True, neff=n_eff, resampled=resampled, best=self.best,
                         seconds=time.perf_counter() - start, grew=grew, clipped=clipped, matched=matched,
                         entropy=entropy(w), refused=refused)

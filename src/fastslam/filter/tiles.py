@@ -160,12 +160,12 @@ class TilePool:
         return self.top * self.tile_bytes + int(self.refs.nbytes) + int(self._free.nbytes)
 
 
-def snapshot(maps: TileMaps) -> dict[str, Any]:
-    """What another process needs to read maps (a view, its pool shared) through
-    SharedTiles: the geometry, a copy of the tables, and where the tiles are."""
-    pool = maps.pool
-    if not pool.shared or pool.fd < 0:
+def snapshot(maps: GridMaps) -> dict[str, Any]:
+    """What another process needs to read maps (a view of TileMaps, its pool shared)
+    through SharedTiles: the geometry, a copy of the tables, and where the tiles are."""
+    if not isinstance(maps, TileMaps) or not maps.pool.shared or maps.pool.fd < 0:
         raise ValueError("the maps' tiles are not shared (TileMaps(..., shared=True))")
+    pool = maps.pool
     state = {k: v for k, v in maps.__dict__.items() if k != "pool"}
     state["table"] = maps.table.copy()
     state["origin"] = maps.origin.copy()

@@ -60,16 +60,17 @@ class Tracker:
         self.match_odom: NDArray[np.float64] | None = None     # ... at its last match
         self.last_scan: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # (odometry, ranges)
         self.grid: GridMaps | None = None                      # the best particle's map since the update
+        self._maps: tuple[GridMaps, int] | None = None         # ... as the particles' maps and the best's index
         self._log()
 
     def start(self, pose: NDArray[np.float64], odom: NDArray[np.float64], ranges: NDArray[np.float64],
-              grid: GridMaps) -> None:
-        """An update: the best particle's pose at odometry pose odom, its map (one particle's view)."""
+              maps: GridMaps, best: int) -> None:
+        """An update: the best particle's pose at odometry pose odom; the particles' maps, best's the one."""
         self.pose = pose.copy()
         self.at_update = pose.copy()
         self.odom = self.match_odom = odom
         self.last_scan = (odom, ranges)
-        self.grid = grid
+        self.grid, self._maps = None, (maps, best)   # its view taken when a scan is matched
         self._log()
 
     def rebase(self, odom: NDArray[np.float64]) -> None:
@@ -142,7 +143,9 @@ class Tracker:
             self.match_odom = odom
         one = predicted[None, :]
         start, params, prior = match_request(cfg, self.params, one, one, std)
-        assert self.grid is not None
+        if self.grid is None:
+            assert self._maps is not None
+            self.grid = self._maps[0].view(self._maps[1])
         beams = select_beams(scan, cfg)
         found = (refine_poses(self.grid, start, beams, params, prior) if cfg.track_search == "refine"
                  else match_poses(self.grid, start, beams, params, prior=prior))

@@ -7,7 +7,7 @@ import pytest
 
 from fastslam import offline, simrun
 from fastslam.config import SlamConfig
-from fastslam.filter import track
+from fastslam.filter import pipeline, track
 from fastslam.filter.pipeline import PipelinedTracker
 from fastslam.io.bag_reader import read_bag
 from fastslam.io.bag_writer import write_bag
@@ -61,6 +61,7 @@ def test_the_second_process_tracks_every_scan_between_updates_to_the_same_bits(s
 def test_any_share_of_the_particles_matched_in_the_second_process_gives_the_same_bits(sim_data, cfg, serial,
                                                                                        monkeypatch):
     monkeypatch.setattr(PipelinedTracker, "share", lambda self, n: n - 1 - len(self._queued) % 3)
+    monkeypatch.setattr(pipeline, "MAX_QUEUED", 2)   # and a wait after every second scan between updates
     run = offline.run_bag(sim_data, cfg, pipeline=True)
     assert run.slam.tracker.matched >= 2 * (run.updates - 1) and not run.events
     _assert_same(run, serial)

@@ -41,6 +41,9 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 # Timing estimates (exponential means) start here and follow each update by this much
 FIRST_SHARE = 1 / 3    # of the particles handed over before any time is measured
 SMOOTHING = 0.2
+# The filter waits for the worker after this many scans without an update (a robot standing
+# for an hour would otherwise keep every scan here until it moves)
+MAX_QUEUED = 256
 
 
 def available() -> bool:
@@ -122,6 +125,8 @@ class PipelinedTracker(Tracker):
         self._tracks += 1
         self._send(("track", odom, scan))
         self._free_at = max(self._free_at, time.perf_counter()) + self._per_scan
+        if len(self._queued) >= MAX_QUEUED:
+            self.settle()
 
     def rebase(self, odom: NDArray[np.float64]) -> None:
         if self.failure:
@@ -150,7 +155,7 @@ class PipelinedTracker(Tracker):
                 self._conn.send(("sync",))
                 reply = self._conn.recv()
             except (EOFError, OSError) as err:
-                reply = ("error", f"{type(err).__name__}: {err}")
+                reply = ("error", self._why(err))
             if reply[0] == "state":
                 super().load(reply[1])
                 if self.timeline is not None:
@@ -191,7 +196,7 @@ class PipelinedTracker(Tracker):
             try:
                 reply = self._conn.recv()
             except (EOFError, OSError) as err:
-                reply = ("error", f"{type(err).__name__}: {err}")
+                reply = ("error", self._why(err))
             if reply[0] == "matched":
                 self.matched += handed
                 return reply[1]
@@ -216,7 +221,18 @@ class PipelinedTracker(Tracker):
         try:
             self._conn.send(message)
         except OSError as err:   # the worker is gone: what it was sent is tracked here at the next wait
-            self._fail(f"the tracking process is gone ({type(err).__name__}: {err})")
+            self._fail(f"the tracking process is gone ({self._why(err)})")
+
+    def _why(self, err: BaseException) -> str:
+        """The worker's own report of its failure if it left one, else err."""
+        try:
+            while self._conn.poll():
+                reply = self._conn.recv()
+                if reply[0] == "error":
+                    return str(reply[1])
+        except (EOFError, OSError):
+            pass
+        return f"{type(err).__name__}: {err}"
 
     def _fail(self, why: str) -> None:
         if not self.failure:

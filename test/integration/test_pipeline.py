@@ -115,3 +115,12 @@ def test_the_command_uses_the_second_process_and_serial_writes_the_same_files(si
     assert worker["failure"] == ""
     for name in ("trajectory.txt", "trajectory_scans.txt", "live_poses.txt", "trajectory_smoothed.txt", "map.pgm"):
         assert (tmp_path / "two" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name
+
+
+def test_dense_maps_cannot_be_shared_so_the_tracking_stays_here(sim_data, cfg, serial, monkeypatch):
+    from fastslam.filter.grid import GridMaps
+    from fastslam.filter.slam import FastSlam
+    monkeypatch.setattr(FastSlam, "maps_type", GridMaps)
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    assert run.slam.tracker.served == 0 and any("cannot be shared" in e for e in run.events), run.events
+    np.testing.assert_allclose(run.live_poses(), serial.live_poses(), rtol=0, atol=1e-9)   # dense maps: the same

@@ -120,7 +120,8 @@ class FastSlam:
         n = cfg.particles
         h, w = cfg.grid_shape
         self.tracker.clear()
-        shared = {"shared": True} if self.tracker.shares_maps else {}   # the tracker reads them from another process
+        # the tracker reads them from another process (dense maps cannot be shared: it then works here)
+        shared = {"shared": True} if self.tracker.shares_maps and issubclass(self.maps_type, TileMaps) else {}
         self.grid = self.maps_type(n, (h, w), cfg.map_resolution,
                              (-w * cfg.map_resolution / 2, -h * cfg.map_resolution / 2),
                              l_limit=max(-cfg.l_min, cfg.l_max), **shared)

@@ -73,7 +73,7 @@ class PipelinedTracker(Tracker):
         self.matched = 0                           # particles the worker matched
         self._per_scan = 0.0                       # [s] the worker's tracking of one scan, on average
         self._per_particle = 0.0                   # [s] the filter's matching of one particle, on average
-        self._handed: tuple[int, int, float] | None = None   # particles handed over, kept here, when
+        self._handed: tuple[int, float] | None = None   # particles handed over, when
         self._particles = 0                        # the particles of the last share()
         self._free_at = 0.0                        # [s] when the worker will have tracked what it was sent
         super().__init__(cfg, params)
@@ -185,11 +185,12 @@ class PipelinedTracker(Tracker):
             self._send(("match", snapshot(grid), args, size))
         except (ValueError, OSError) as err:
             self._fail(f"the maps cannot be shared ({err})")
-        self._handed = (grid.particles, self._particles - grid.particles, time.perf_counter())
+        self._handed = (grid.particles, time.perf_counter())
 
     def result(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> MatchPart:
         assert self._handed is not None
-        handed, kept, since = self._handed
+        handed, since = self._handed
+        kept = self._particles - handed
         if kept > 0:   # the filter matched its own meanwhile
             self._per_particle = _mean(self._per_particle, (time.perf_counter() - since) / kept)
         if not self.failure:

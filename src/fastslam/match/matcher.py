@@ -169,21 +169,14 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
     # Particles in chunks whose pooled maps stay within MATCH_BYTES: a window across a
     # large building would otherwise take tens of MB.
     size = max(1, MATCH_BYTES // ((x1 - x0) * (y1 - y0) * 5 // 16))     # pooled maps (half, quarter) per particle
-
-    def args(a: int, b: int) -> tuple[Any, ...]:
-        return (poses[a:b], centre[a:b], spread, local, icp_points, (x0, y0, x1, y1), k0, ka, dth, params, arc,
-                None if origin is None else origin[a:b])
-    here = n - (helper.share(n) if helper is not None else 0)
-    if here < n:
-        assert helper is not None
-        helper.submit(grid.view(here, n), args(here, n), size)
-    found = [_match_some(grid.view(a, min(here, a + size)), *args(a, min(here, a + size)))
-             for a in range(0, here, size)]
-    if here < n:
-        assert helper is not None
-        found.append(helper.result(grid.view(here, n), args(here, n), size))
-    pose, trusted, score = (np.concatenate([f[i] for f in found]) for i in (0, 1, 3))
-    cov, info, free = (None if found[0][i] is None else np.concatenate([f[i] for f in found]) for i in (2, 4, 5))
+    every = (poses, centre, spread, local, icp_points, (x0, y0, x1, y1), k0, ka, dth, params, arc, origin)
+    here = n - (helper.share(n) if helper is not None else 0)    # particles matched in this process
+    if helper is not None and here < n:
+        helper.submit(grid.view(here, n), _sliced(every, here, n), size)
+    parts = [match_some(grid.view(0, here), _sliced(every, 0, here), size)] if here > 0 else []
+    if helper is not None and here < n:
+        parts.append(helper.result(grid.view(here, n), _sliced(every, here, n), size))
+    pose, trusted, cov, score, info, free = _joined(parts)
     return Match(poses=pose, trusted=trusted, covariance=cov, score=score, scan_information=info,
                  icp_points=0 if icp_points is None else len(icp_points[0]), free=free)
 
@@ -191,8 +184,12 @@ def match_poses(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, params
 def match_some(grid: GridMaps, args: tuple[Any, ...], size: int) -> MatchPart:
     """_match_some(grid, *args) in chunks of size particles, joined (a helper's share)."""
     n = grid.particles
-    parts = [_match_some(grid.view(a, min(n, a + size)), *_sliced(args, a, min(n, a + size)))
-             for a in range(0, n, size)]
+    return _joined([_match_some(grid.view(a, min(n, a + size)), *_sliced(args, a, min(n, a + size)))
+                    for a in range(0, n, size)])
+
+
+def _joined(parts: list[MatchPart]) -> MatchPart:
+    """The parts' results, particle after particle."""
     return tuple(None if parts[0][i] is None else np.concatenate([p[i] for p in parts])   # type: ignore[return-value]
                  for i in range(6))
 

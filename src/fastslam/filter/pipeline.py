@@ -111,11 +111,7 @@ class PipelinedTracker(Tracker):
               maps: GridMaps, best: int) -> None:
         self.settle()
         super().start(pose, odom, ranges, maps, best)
-        if not self.failure:
-            try:
-                self._send(("start", super().state(), snapshot(maps.view(best))))
-            except (ValueError, OSError) as err:
-                self._fail(f"the maps cannot be shared ({err})")
+        self._send_maps("start", maps.view(best), super().state())
 
     def track(self, odom: NDArray[np.float64], scan: Scan) -> None:
         if self.failure:
@@ -151,22 +147,18 @@ class PipelinedTracker(Tracker):
         if not self._queued:
             return
         if not self.failure:
-            try:
-                self._conn.send(("sync",))
-                reply = self._conn.recv()
-            except (EOFError, OSError) as err:
-                reply = ("error", self._why(err))
-            if reply[0] == "state":
-                super().load(reply[1])
-                if self.timeline is not None:
-                    self.timeline.extend(reply[2])
-                self.served += self._tracks
-                if self._tracks:
-                    self._per_scan = _mean(self._per_scan, reply[3] / self._tracks)
-                self._queued, self._tracks = [], 0
-                return
-            self._fail(f"the tracking process failed ({reply[1]})")
-        self._replay()
+            self._send(("sync",))
+        reply = self._receive("state")
+        if reply is None:
+            self._replay()
+            return
+        super().load(reply[1])
+        if self.timeline is not None:
+            self.timeline.extend(reply[2])
+        self.served += self._tracks
+        if self._tracks:
+            self._per_scan = _mean(self._per_scan, reply[3] / self._tracks)
+        self._queued, self._tracks = [], 0
 
     # -- matching some particles (match.matcher.Helper) --------------------------------
     def share(self, n: int) -> int:
@@ -181,10 +173,7 @@ class PipelinedTracker(Tracker):
         return int(np.clip(round((n * self._per_particle - backlog) / (2 * self._per_particle)), 0, n // 2))
 
     def submit(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> None:
-        try:
-            self._send(("match", snapshot(grid), args, size))
-        except (ValueError, OSError) as err:
-            self._fail(f"the maps cannot be shared ({err})")
+        self._send_maps("match", grid, args, size)
         self._handed = (grid.particles, time.perf_counter())
 
     def result(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> MatchPart:
@@ -193,16 +182,11 @@ class PipelinedTracker(Tracker):
         kept = self._particles - handed
         if kept > 0:   # the filter matched its own meanwhile
             self._per_particle = _mean(self._per_particle, (time.perf_counter() - since) / kept)
-        if not self.failure:
-            try:
-                reply = self._conn.recv()
-            except (EOFError, OSError) as err:
-                reply = ("error", self._why(err))
-            if reply[0] == "matched":
-                self.matched += handed
-                return reply[1]
-            self._fail(f"the tracking process failed ({reply[1]})")
-        return match_some(grid, args, size)
+        reply = self._receive("matched")
+        if reply is None:
+            return match_some(grid, args, size)
+        self.matched += handed
+        return reply[1]
 
     def close(self) -> None:
         """Ends the worker; what it was sent since the last wait is dropped (settle first to keep it)."""
@@ -217,6 +201,30 @@ class PipelinedTracker(Tracker):
                 self._worker.join()
         self._conn.close()
         self.failure = self.failure or "closed"
+
+    def _send_maps(self, kind: str, maps: GridMaps, *rest: Any) -> None:
+        """A message (kind, the maps' snapshot, *rest); maps that cannot be shared end the worker's use."""
+        if self.failure:
+            return
+        try:
+            snap = snapshot(maps)
+        except (ValueError, OSError) as err:
+            self._fail(f"the maps cannot be shared ({err})")
+            return
+        self._send((kind, snap, *rest))
+
+    def _receive(self, kind: str) -> tuple[Any, ...] | None:
+        """The worker's next reply, of this kind; None if it failed (then given up)."""
+        if self.failure:
+            return None
+        try:
+            reply: tuple[Any, ...] = self._conn.recv()
+        except (EOFError, OSError) as err:
+            reply = ("error", self._why(err))
+        if reply[0] == kind:
+            return reply
+        self._fail(f"the tracking process failed ({reply[1]})")
+        return None
 
     def _send(self, message: tuple[Any, ...]) -> None:
         try:
@@ -269,8 +277,8 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
             elif kind == "rebase":
                 tracker.rebase(message[1])
             elif kind == "start":
-                tracker.load(message[1])
-                tracker.grid = tiles.maps(message[2])
+                tracker.grid = tiles.maps(message[1])
+                tracker.load(message[2])
             elif kind == "sync":
                 conn.send(("state", tracker.state(), tracker.timeline, busy))
                 tracker.timeline, busy = [], 0.0

@@ -228,6 +228,7 @@ def _run(data: BagData, cfg: SlamConfig, progress: bool, limits: Limits | None,
         if tracker.failure:
             result.events.append(f"scans between updates tracked in this process: {tracker.failure}")
         result.second_process = {"scans_tracked": tracker.served, "particles_matched": tracker.matched,
+                                 "particles_written": tracker.wrote,
                                  "failure": tracker.failure}
     result.wall_seconds = time.perf_counter() - start
     result.rules = dict(front.counts)

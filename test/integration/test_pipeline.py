@@ -1,5 +1,5 @@
-"""Tracking, and matching some particles, in a second process (filter/pipeline.py) gives the results
-of doing it all in this one, to the bit."""
+"""Tracking, and matching, weighing and writing the maps of some particles, in a second process
+(filter/pipeline.py) gives the results of doing it all in this one, to the bit."""
 import os
 
 import numpy as np
@@ -51,7 +51,8 @@ def test_the_second_process_tracks_every_scan_between_updates_to_the_same_bits(s
     run = offline.run_bag(sim_data, cfg, pipeline=True)
     tracked = run.scans - run.updates
     assert tracked > 50 and run.slam.tracker.served == tracked and not run.events
-    assert run.slam.tracker.matched > 0   # how many depends on the time each process takes (not the results)
+    # how many depends on the time each process takes (not the results)
+    assert run.slam.tracker.matched > 0 and run.slam.tracker.wrote > 0
     _assert_same(run, serial)
     # the poses between updates came from the matcher (not the odometry alone)
     assert not np.array_equal(serial.live_poses(), offline.run_bag(sim_data, cfg.replace(track_scans=False))
@@ -65,6 +66,47 @@ def test_any_share_of_the_particles_matched_in_the_second_process_gives_the_same
     run = offline.run_bag(sim_data, cfg, pipeline=True)
     assert run.slam.tracker.matched >= 2 * (run.updates - 1) and not run.events
     _assert_same(run, serial)
+
+
+def test_any_share_of_the_particles_written_in_the_second_process_gives_the_same_bits(sim_data, cfg, serial,
+                                                                                       monkeypatch):
+    shares = []
+
+    def share(self, n):
+        shares.append(1 + len(shares) % (n - 1))
+        return shares[-1]
+    monkeypatch.setattr(PipelinedTracker, "write_share", share)
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    assert run.slam.tracker.wrote == sum(shares) and set(shares) == {1, 2, 3, 4} and not run.events
+    assert run.slam.tracker.short == 0
+    _assert_same(run, serial)
+
+
+def test_a_second_process_short_of_tiles_gives_its_writes_back_and_is_lent_more(sim_data, cfg, serial,
+                                                                                 monkeypatch):
+    monkeypatch.setattr(pipeline, "FIRST_LOAN", 1)
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    tracker = run.slam.tracker
+    assert tracker.short > 0 and tracker._lend > 1 and tracker.wrote > 0 and not run.events
+    _assert_same(run, serial)
+
+
+def test_a_process_killed_while_it_writes_leaves_the_results_as_they_were(sim_data, cfg, serial, monkeypatch):
+    submit, calls = PipelinedTracker.submit_writes, []
+
+    def submit_then_kill(self, *args):
+        submit(self, *args)
+        calls.append(1)
+        if len(calls) == 5:      # the worker has the tiles lent and is told to write
+            self._worker.kill()
+            self._worker.join()
+    monkeypatch.setattr(PipelinedTracker, "submit_writes", submit_then_kill)
+    run = offline.run_bag(sim_data, cfg, pipeline=True)
+    assert 0 < run.slam.tracker.wrote and any("tracking process" in e for e in run.events), run.events
+    _assert_same(run, serial)
+    pool = run.slam.grid.pool   # the tiles lent came back: every count adds up
+    held = np.bincount(run.slam.grid.table.reshape(-1), minlength=pool.top)[1:pool.top]
+    np.testing.assert_array_equal(pool.refs[1:pool.top], held)
 
 
 def test_a_killed_tracking_process_leaves_the_results_as_they_were(sim_data, cfg, serial, monkeypatch):
@@ -112,6 +154,7 @@ def test_the_command_uses_the_second_process_and_serial_writes_the_same_files(si
     assert one["second_process"] is None
     worker = two["second_process"]
     assert worker["scans_tracked"] == two["scans"] - two["updates"] > 20 and worker["particles_matched"] > 0
+    assert worker["particles_written"] > 0
     assert worker["failure"] == ""
     for name in ("trajectory.txt", "trajectory_scans.txt", "live_poses.txt", "trajectory_smoothed.txt", "map.pgm"):
         assert (tmp_path / "two" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name

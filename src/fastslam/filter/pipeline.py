@@ -26,10 +26,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fastslam.config import SlamConfig
+from fastslam.filter import loan
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Scan
-from fastslam.filter.tiles import SharedTiles, snapshot
+from fastslam.filter.tiles import SharedTiles, TileMaps, snapshot
 from fastslam.filter.track import Tracker
+from fastslam.filter.trimmed import write_some
 from fastslam.match import MatchParams
 from fastslam.match.matcher import match_some
 
@@ -41,6 +43,9 @@ if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
 # Timing estimates (exponential means) start here and follow each update by this much
 FIRST_SHARE = 1 / 3    # of the particles handed over before any time is measured
 SMOOTHING = 0.2
+# Tiles lent per particle for the worker's map writes at first (filter/loan.py); then twice the
+# most an update used per particle, and twice as many after the worker ran out (CSAIL: 11 a particle, at most 28)
+FIRST_LOAN = 64
 # The filter waits for the worker after this many scans without an update (a robot standing
 # for an hour would otherwise keep every scan here until it moves)
 MAX_QUEUED = 256
@@ -63,6 +68,11 @@ class PipelinedTracker(Tracker):
         """This tracker matches particles too while its worker lives."""
         return None if self.failure else self
 
+    @property
+    def writer(self) -> PipelinedTracker | None:   # type: ignore[override]
+        """... and writes the scan into some particles' maps."""
+        return None if self.failure else self
+
     def __init__(self, cfg: SlamConfig, params: MatchParams) -> None:
         self._pose = np.zeros(3)
         self._stalls = 0
@@ -76,6 +86,11 @@ class PipelinedTracker(Tracker):
         self._handed: tuple[int, float] | None = None   # particles handed over, when
         self._particles = 0                        # the particles of the last share()
         self._free_at = 0.0                        # [s] when the worker will have tracked what it was sent
+        self.wrote = 0                             # particles whose maps the worker wrote
+        self._per_write = (0.0, 0.0)               # [s] one particle's map write here, there, on average
+        self._loan: tuple[loan.Loan, float] | None = None   # tiles lent for the writes, when
+        self._lend = FIRST_LOAN                    # tiles lent per particle
+        self.short = 0                             # writes the worker gave back for want of tiles
         super().__init__(cfg, params)
         ctx = multiprocessing.get_context("fork")
         self._conn, theirs = ctx.Pipe()
@@ -188,6 +203,51 @@ class PipelinedTracker(Tracker):
         self.matched += handed
         return reply[1]
 
+    # -- writing some particles' maps (trimmed.Writer) ---------------------------------
+    def write_share(self, n: int) -> int:
+        """The particles whose maps the worker writes: as many as leave both as busy."""
+        if self.failure or n < 2:
+            return 0
+        here, there = self._per_write
+        if here <= 0 or there <= 0:
+            return int(n * FIRST_SHARE)
+        return int(np.clip(round(n * here / (here + there)), 1, n - 1))
+
+    def submit_writes(self, grid: GridMaps, first: int, args: tuple[Any, ...], origins: NDArray[np.float64],
+                      reach: float) -> None:
+        if not isinstance(grid, TileMaps):
+            self._fail("the maps cannot be shared (dense maps, not tiles)")
+            return
+        bound = loan.reach_tiles(grid, origins, reach)
+        lent = loan.lend(grid, first, grid.particles, min(self._lend, bound), bound)
+        self._loan = (lent, time.perf_counter())
+        self._send_maps("write", grid.view(first, grid.particles), lent.ids, args)
+
+    def written(self, grid: GridMaps, first: int, args: tuple[Any, ...]) -> NDArray[np.float64] | None:
+        n = grid.particles
+        lent, since = self._loan if self._loan is not None else (None, 0.0)
+        self._loan = None
+        here, there = self._per_write
+        if first > 0:
+            here = _mean(here, (time.perf_counter() - since) / first)
+        reply = self._receive("written") if lent is not None else None
+        if reply is not None and reply[1] is not None:
+            assert isinstance(grid, TileMaps) and lent is not None
+            _, slots, ids, used, log_w, busy = reply
+            loan.repay(grid, lent, slots, ids, used)
+            self._per_write = (here, _mean(there, busy / (n - first)))
+            self._lend = max(self._lend, 2 * -(-used // (n - first)))
+            self.wrote += n - first
+            return log_w
+        if reply is not None:   # it ran out of tiles
+            self.short += 1
+            self._lend *= 2
+        if lent is not None:
+            assert isinstance(grid, TileMaps)
+            loan.refund(grid, lent)
+        self._per_write = (here, there)
+        return write_some(grid.view(first, n), args)
+
     def close(self) -> None:
         """Ends the worker; what it was sent since the last wait is dropped (settle first to keep it)."""
         if self._worker.is_alive():
@@ -265,6 +325,7 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
     tracker = Tracker(cfg, params)
     tracker.timeline = []
     tiles = SharedTiles()
+    writable = SharedTiles(writable=True)   # the tiles lent for the writes
     busy = 0.0   # [s] tracking since the last sync
     try:
         while True:
@@ -284,6 +345,8 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
                 tracker.timeline, busy = [], 0.0
             elif kind == "match":
                 conn.send(("matched", match_some(tiles.maps(message[1]), message[2], message[3])))
+            elif kind == "write":
+                conn.send(_write(writable, *message[1:]))
             else:
                 return
     except (EOFError, KeyboardInterrupt, BrokenPipeError):
@@ -293,6 +356,20 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
             conn.send(("error", f"{type(err).__name__}: {err}"))
         except OSError:
             pass
+
+
+def _write(tiles: SharedTiles, snap: dict[str, Any], ids: NDArray[np.int32], args: tuple[Any, ...]
+           ) -> tuple[Any, ...]:
+    """The worker's weights and writes into the tiles lent (loan.py): ("written", slots, ids,
+    used, log-weights, seconds)."""
+    began = time.perf_counter()
+    maps = loan.lent_maps(tiles.maps(snap), tiles.tiles, ids)
+    before = maps.table.copy()
+    try:
+        log_w = write_some(maps, args)
+    except loan.OutOfTiles:   # the filter writes them itself
+        return ("written", None)
+    return ("written", *loan.changes(maps, before), log_w, time.perf_counter() - began)
 
 
 def _mean(mean: float, value: float) -> float:

@@ -37,10 +37,10 @@ from fastslam.filter.proposal import (
     taken,
 )
 from fastslam.filter.resample import entropy, low_variance_indices, neff, slot_parents
-from fastslam.filter.scan import Beams, Scan, end_points, returns_subset, select_beams
+from fastslam.filter.scan import Beams, Scan, returns_subset, select_beams
 from fastslam.filter.tiles import TileMaps
 from fastslam.filter.track import Tracker
-from fastslam.filter.weights import assignment_log_weights, endpoint_distances, likelihood_log_weights, normalise_log
+from fastslam.filter.weights import Weighing, assignment_log_weights, normalise_log
 from fastslam.geometry import cholesky3, circular_mean, compose, transform_points, wrap_angle
 from fastslam.match import Match, MatchParams, match_poses
 from fastslam.match.matcher import PRIOR_FLOOR
@@ -457,24 +457,23 @@ class FastSlam:
         origins, angles = self._beam_frames(beams)
         match, self._match = self._match, None
         if cfg.weight_model == "likelihood":
+            weighing = None
             if weigh:
                 sub = returns_subset(beams, cfg.match_beams)  # the matcher's end points
                 if cfg.match_weight == "likelihood":
                     match = None
                 at = self.poses if match is None else np.where(match.trusted[:, None], match.poses, self.poses)
-                dist = endpoint_distances(self.grid, at, sub, max_dist=cfg.likelihood_max_dist)
-                log_w = likelihood_log_weights(dist, sub.hit, cfg.likelihood_sigma,
-                                               cfg.likelihood_max_dist, cfg.likelihood_gain)
-                if cfg.likelihood_free > 0:
-                    # end points in known free space with no wall near: the scan contradicts the map there
-                    wrong = (dist >= cfg.likelihood_max_dist) & sub.hit & self._in_free_space(sub, at)
-                    log_w = log_w - cfg.likelihood_gain * cfg.likelihood_free * wrong.sum(axis=1)
-                if match is not None and cfg.match_weight == "normaliser":   # times the prior round the match
-                    log_w = log_w + self._normaliser_terms(match, int(np.count_nonzero(sub.hit)))
-            trimmed.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
-                                   groups=TRIM_GROUPS,
-                                   free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step,
-                                                                   cfg.free_beam_spacing))
+                weighing = Weighing(at, sub, cfg.likelihood_sigma, cfg.likelihood_max_dist, cfg.likelihood_gain,
+                                    cfg.likelihood_free)
+            # each particle weighed against its map before this scan, then the scan written in
+            log_w = trimmed.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
+                                           groups=TRIM_GROUPS,
+                                           free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step,
+                                                                           cfg.free_beam_spacing),
+                                           weighing=weighing, writer=self.tracker.writer)
+            if weighing is not None and log_w is not None and match is not None and cfg.match_weight == "normaliser":
+                # times the prior round the match
+                log_w = log_w + self._normaliser_terms(match, int(np.count_nonzero(weighing.beams.hit)))
         else:
             d = raycast.observe(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
                                 expected=weigh)
@@ -496,18 +495,6 @@ class FastSlam:
         spread = self._matcher_spread()
         terms = normaliser_log_terms(match.poses, self._predicted, spread, scale * match.scan_information)
         return np.where(match.trusted, terms, 0.0)
-
-    def _in_free_space(self, beams: Beams, poses: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """(N, M) whether each beam's end point seen from each pose (N, 3) falls on a cell
-        its particle's map holds free (log-odds below zero); outside the grid: no."""
-        grid = self.grid
-        h, w = grid.shape
-        x, y = transform_points(poses, end_points(beams, np.arange(len(beams.ranges))))
-        ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
-        iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
-        inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-        cells = grid.values(np.arange(len(poses))[:, None], np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1))
-        return inside & (cells < 0)
 
     def _resample(self, w: NDArray[np.float64], n_eff: float) -> tuple[bool, NDArray[np.intp]]:
         """Low-variance resampling when due; returns whether, and each slot's parent slot."""

@@ -119,6 +119,12 @@ class TilePool:
         self.refs[ids] = 1
         return ids
 
+    def reserve_more(self, k: int) -> None:
+        """Room for k more tiles than the free ones without growing (filter/loan.py)."""
+        need = self.top + max(0, int(k) - self._nfree)
+        if need > self.capacity:
+            self._reserve(max(need, 2 * self.capacity))
+
     def release(self, ids: NDArray[np.integer[Any]]) -> None:
         """Drops one reference of each of ids (repeats count, id 0 ignored); tiles left
         without any go to the free list."""
@@ -173,22 +179,25 @@ def snapshot(maps: GridMaps) -> dict[str, Any]:
 
 
 class SharedTiles:
-    """Another process's shared TilePool, read only: the tiles a snapshot's maps read."""
+    """Another process's shared TilePool: the tiles a snapshot's maps read (writable: the
+    tiles lent to this process are written too, filter/loan.py)."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, writable: bool = False) -> None:
         self.tiles: NDArray[np.int8] = np.zeros((0, 1, 1), dtype=LOGODDS_DTYPE)
         self._key: tuple[int, int, int] | None = None
         self._map: mmap.mmap | None = None
+        self._writable = writable
 
     def maps(self, snap: dict[str, Any]) -> TileMaps:
         """The maps of a snapshot, reading the tiles where they are now."""
         pid, fd, inode, capacity, tile = snap["tiles"]
         size = int(capacity) * int(tile[0]) * int(tile[1])
         if self._key != (pid, fd, inode) or self._map is None or len(self._map) < size:
-            with open(f"/proc/{pid}/fd/{fd}", "rb") as f:   # the same memory file, opened again
+            mode, prot = ("r+b", mmap.PROT_READ | mmap.PROT_WRITE) if self._writable else ("rb", mmap.PROT_READ)
+            with open(f"/proc/{pid}/fd/{fd}", mode) as f:   # the same memory file, opened again
                 if os.fstat(f.fileno()).st_ino != inode:
                     raise OSError(f"the tiles' memory file of process {pid} is gone")
-                self._map = mmap.mmap(f.fileno(), size, flags=mmap.MAP_SHARED, prot=mmap.PROT_READ)
+                self._map = mmap.mmap(f.fileno(), size, flags=mmap.MAP_SHARED, prot=prot)
             self._key = (pid, fd, inode)
         self.tiles = np.frombuffer(self._map, dtype=LOGODDS_DTYPE, count=size).reshape((-1,) + tuple(tile))
         some = TileMaps.__new__(TileMaps)

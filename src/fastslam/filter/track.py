@@ -19,6 +19,7 @@ from fastslam.filter.grid import GridMaps
 from fastslam.filter.motion import odometry_std
 from fastslam.filter.proposal import gate_match, match_request
 from fastslam.filter.scan import Scan, select_beams
+from fastslam.filter.trimmed import Writer
 from fastslam.geometry import compose, relative, wrap_angle
 from fastslam.match import MatchParams, match_poses, refine_poses
 from fastslam.match.matcher import Helper
@@ -43,6 +44,7 @@ class Tracker:
 
     shares_maps = False   # whether the filter's maps must live in memory other processes can map
     helper: Helper | None = None   # another process matching some particles (filter/pipeline.py)
+    writer: Writer | None = None   # ... and writing the scan into some particles' maps
 
     def __init__(self, cfg: SlamConfig, params: MatchParams) -> None:
         self.cfg = cfg

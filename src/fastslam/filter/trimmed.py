@@ -4,7 +4,7 @@ of similar length, each group only as far as its longest beam reaches.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -13,6 +13,7 @@ from fastslam.filter.raycast import apply_update, cells_to_update, free_of
 from fastslam.filter.rays import Lines, beam_lines, flat_inside, range_step, trace_lines
 from fastslam.filter.scan import Beams
 from fastslam.filter.scratch import scratch
+from fastslam.filter.weights import Weighing, scan_log_weights
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -35,8 +36,25 @@ def clearing_step(angles: NDArray[np.float64], step: int, spacing: float) -> int
     return max(step, math.ceil(math.radians(spacing) / between - 0.01))
 
 
+class Writer(Protocol):
+    """Another process that weighs some particles and writes the scan into their maps
+    (filter/pipeline.py): the same write_some on the same arguments, so the same to the bit."""
+
+    def write_share(self, n: int) -> int:
+        """How many of n particles (the last ones) to hand over now."""
+
+    def submit_writes(self, grid: GridMaps, first: int, args: tuple[Any, ...], origins: NDArray[np.float64],
+                      reach: float) -> None:
+        """Starts write_some(grid.view(first, N), args); origins (N, 2): every particle's beams
+        start there and reach at most reach [m]."""
+
+    def written(self, grid: GridMaps, first: int, args: tuple[Any, ...]) -> NDArray[np.float64] | None:
+        """Takes its writes into grid (or writes them here if the helper failed); its weights."""
+
+
 def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,
-                   steps: LogOddsSteps, *, max_range: float, groups: int, free_step: int = 1) -> None:
+                   steps: LogOddsSteps, *, max_range: float, groups: int, free_step: int = 1,
+                   weighing: Weighing | None = None, writer: Writer | None = None) -> NDArray[np.float64] | None:
     """The grid update of raycast.observe without expected ranges (faster): beams are traced in
     groups of similar length, each only as far as its longest beam reaches, not to
     max_range (the cells of a beam's line then depend on its group's length).
@@ -47,7 +65,44 @@ def update_trimmed(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray
         groups: number of groups of beams of similar length.
         free_step: only every free_step-th beam (in angle) clears free space; the
             others only mark the cell of their end point.
+        weighing: each particle is weighed first, against its map before the scan.
+        writer: weighs and writes the last particles meanwhile (each particle's are its own).
+
+    Returns:
+        (N,) the log-likelihoods (weighing), else None.
     """
+    n = grid.particles
+    args = (origins, angles, beams, steps, {"max_range": max_range, "groups": groups, "free_step": free_step},
+            weighing)
+    here = n - (writer.write_share(n) if writer is not None else 0)
+    if writer is None or here == n:
+        return write_some(grid, args)
+    theirs = _part(args, here, n)
+    reach = max(max_range, float(beams.ranges[beams.hit].max(initial=0.0))) + 2 * grid.resolution
+    writer.submit_writes(grid, here, theirs, origins, reach)
+    mine = write_some(grid.view(0, here), _part(args, 0, here)) if here > 0 else None
+    there = writer.written(grid, here, theirs)
+    if weighing is None:
+        return None
+    return there if mine is None else np.concatenate([mine, there])
+
+
+def write_some(grid: GridMaps, args: tuple[Any, ...]) -> NDArray[np.float64] | None:
+    """update_trimmed(grid, *args[:4], **args[4], weighing=args[5]) in this process (a writer's share)."""
+    origins, angles, beams, steps, options, weighing = args
+    log_w = None if weighing is None else scan_log_weights(grid, weighing)
+    _write(grid, origins, angles, beams, steps, **options)
+    return log_w
+
+
+def _part(args: tuple[Any, ...], a: int, b: int) -> tuple[Any, ...]:
+    """write_some's arguments for particles a..b-1."""
+    origins, angles, beams, steps, options, weighing = args
+    return (origins[a:b], angles[a:b], beams, steps, options, None if weighing is None else weighing.some(a, b))
+
+
+def _write(grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64], beams: Beams,
+           steps: LogOddsSteps, *, max_range: float, groups: int, free_step: int) -> None:
     ranges, hit, free_range, range_min = beams.ranges, beams.hit, beams.free_range, beams.range_min
     n_p, m = angles.shape
     far = hit & (ranges > free_range)    # past max_range (mark_range): marked like an untraced beam, traced as free

@@ -3,7 +3,7 @@ both as log-weights so that weights can carry over between updates without under
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -53,6 +53,46 @@ def normalise_log(log_w: NDArray[np.float64]) -> NDArray[np.float64]:
     w = np.zeros(len(log_w))
     w[finite] = np.exp(log_w[finite] - log_w[finite].max())
     return w / w.sum()
+
+
+class Weighing(NamedTuple):
+    """What the likelihood weights of one scan need: each particle's pose (N, 3), the end
+    points (the matcher's returns), and the model (config: likelihood_*)."""
+
+    poses: NDArray[np.float64]
+    beams: Beams
+    sigma: float
+    max_dist: float
+    gain: float
+    free: float    # likelihood_free: an end point in known free space, no wall near, costs this much again
+
+    def some(self, a: int, b: int) -> Weighing:
+        """The same for particles a..b-1."""
+        return self._replace(poses=self.poses[a:b])
+
+
+def scan_log_weights(grid: GridMaps, weighing: Weighing) -> NDArray[np.float64]:
+    """(N,) each particle's log-likelihood of the end points against its map (before the scan is written)."""
+    w = weighing
+    dist = endpoint_distances(grid, w.poses, w.beams, max_dist=w.max_dist)
+    log_w = likelihood_log_weights(dist, w.beams.hit, w.sigma, w.max_dist, w.gain)
+    if w.free > 0:
+        # end points in known free space with no wall near: the scan contradicts the map there
+        wrong = (dist >= w.max_dist) & w.beams.hit & ends_in_free_space(grid, w.beams, w.poses)
+        log_w = log_w - w.gain * w.free * wrong.sum(axis=1)
+    return log_w
+
+
+def ends_in_free_space(grid: GridMaps, beams: Beams, poses: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """(N, M) whether each beam's end point seen from each pose (N, 3) falls on a cell
+    its particle's map holds free (log-odds below zero); outside the grid: no."""
+    h, w = grid.shape
+    x, y = transform_points(poses, end_points(beams, np.arange(len(beams.ranges))))
+    ix = np.floor((x - grid.origin[0]) / grid.resolution).astype(np.intp)
+    iy = np.floor((y - grid.origin[1]) / grid.resolution).astype(np.intp)
+    inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+    cells = grid.values(np.arange(len(poses))[:, None], np.clip(iy, 0, h - 1), np.clip(ix, 0, w - 1))
+    return inside & (cells < 0)
 
 
 def endpoint_distances(grid: GridMaps, poses: NDArray[np.float64], beams: Beams, *,

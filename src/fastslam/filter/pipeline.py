@@ -82,7 +82,7 @@ class PipelinedTracker(Tracker):
         self.served = 0                            # scans the worker tracked
         self.matched = 0                           # particles the worker matched
         self._per_scan = 0.0                       # [s] the worker's tracking of one scan, on average
-        self._per_particle = 0.0                   # [s] the filter's matching of one particle, on average
+        self._per_particle = (0.0, 0.0)            # [s] matching one particle here, there, on average
         self._handed: tuple[int, float] | None = None   # particles handed over, when
         self._particles = 0                        # the particles of the last share()
         self._free_at = 0.0                        # [s] when the worker will have tracked what it was sent
@@ -182,10 +182,11 @@ class PipelinedTracker(Tracker):
         self._particles = n
         if self.failure or n < 2:
             return 0
-        if self._per_particle <= 0:
+        here, there = self._per_particle
+        if here <= 0 or there <= 0:
             return int(n * FIRST_SHARE)
         backlog = max(0.0, self._free_at - time.perf_counter())
-        return int(np.clip(round((n * self._per_particle - backlog) / (2 * self._per_particle)), 0, n // 2))
+        return int(np.clip(round((n * here - backlog) / (here + there)), 0, n - 1))
 
     def submit(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> None:
         self._send_maps("match", grid, args, size)
@@ -195,13 +196,17 @@ class PipelinedTracker(Tracker):
         assert self._handed is not None
         handed, since = self._handed
         kept = self._particles - handed
+        here, there = self._per_particle
         if kept > 0:   # the filter matched its own meanwhile
-            self._per_particle = _mean(self._per_particle, (time.perf_counter() - since) / kept)
+            here = _mean(here, (time.perf_counter() - since) / kept)
         reply = self._receive("matched")
         if reply is None:
+            self._per_particle = (here, there)
             return match_some(grid, args, size)
+        _, part, began, ended = reply
+        self._per_particle = (here, _mean(there, (ended - began) / handed))
         self.matched += handed
-        return reply[1]
+        return part
 
     # -- writing some particles' maps (trimmed.Writer) ---------------------------------
     def write_share(self, n: int) -> int:
@@ -233,9 +238,10 @@ class PipelinedTracker(Tracker):
         reply = self._receive("written") if lent is not None else None
         if reply is not None and reply[1] is not None:
             assert isinstance(grid, TileMaps) and lent is not None
-            _, slots, ids, used, log_w, busy = reply
+            _, slots, ids, used, log_w, ended = reply
             loan.repay(grid, lent, slots, ids, used)
-            self._per_write = (here, _mean(there, busy / (n - first)))
+            # from the hand-over to the worker's end (the messages' time counts: both sides end together)
+            self._per_write = (here, _mean(there, (ended - since) / (n - first)))
             self._lend = max(self._lend, 2 * -(-used // (n - first)))
             self.wrote += n - first
             return log_w
@@ -344,7 +350,9 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
                 conn.send(("state", tracker.state(), tracker.timeline, busy))
                 tracker.timeline, busy = [], 0.0
             elif kind == "match":
-                conn.send(("matched", match_some(tiles.maps(message[1]), message[2], message[3])))
+                began = time.perf_counter()
+                part = match_some(tiles.maps(message[1]), message[2], message[3])
+                conn.send(("matched", part, began, time.perf_counter()))
             elif kind == "write":
                 conn.send(_write(writable, *message[1:]))
             else:
@@ -361,15 +369,14 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
 def _write(tiles: SharedTiles, snap: dict[str, Any], ids: NDArray[np.int32], args: tuple[Any, ...]
            ) -> tuple[Any, ...]:
     """The worker's weights and writes into the tiles lent (loan.py): ("written", slots, ids,
-    used, log-weights, seconds)."""
-    began = time.perf_counter()
+    used, log-weights, when it ended: perf_counter, the same clock in both processes)."""
     maps = loan.lent_maps(tiles.maps(snap), tiles.tiles, ids)
     before = maps.table.copy()
     try:
         log_w = write_some(maps, args)
     except loan.OutOfTiles:   # the filter writes them itself
         return ("written", None)
-    return ("written", *loan.changes(maps, before), log_w, time.perf_counter() - began)
+    return ("written", *loan.changes(maps, before), log_w, time.perf_counter())
 
 
 def _mean(mean: float, value: float) -> float:

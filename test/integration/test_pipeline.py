@@ -109,6 +109,27 @@ def test_a_process_killed_while_it_writes_leaves_the_results_as_they_were(sim_da
     np.testing.assert_array_equal(pool.refs[1:pool.top], held)
 
 
+def test_the_map_the_worker_tracks_against_stays_as_at_the_update_while_the_filter_writes(cfg):
+    from fastslam.filter.slam import FastSlam
+    from fastslam.filter.tiles import TileMaps
+    maps = TileMaps(3, (32, 32), 0.1, (-1.6, -1.6), shared=True)
+    maps.put(1, [3, 20], [4, 20], [9, 9])
+    tracker = PipelinedTracker(cfg, FastSlam.track_params(cfg))
+    try:
+        tracker.start(np.zeros(3), np.zeros(3), np.ones(4), maps, 1)
+        held = maps.table[1].copy()
+        assert (maps.pool.refs[held[held > 0]] == 2).all()     # the particle's, and the worker's
+        maps.put(1, [3, 3], [4, 5], [-5, 7])                       # the filter writes: a copy
+        assert maps.values(1, [3, 3], [4, 5]).tolist() == [-5, 7]
+        assert tracker.grid.values(0, [3, 3, 20], [4, 5, 20]).tolist() == [9, 0, 9]   # as at the update
+        tracker.start(np.zeros(3), np.zeros(3), np.ones(4), maps, 0)  # the next update: let go
+        table = maps.table.reshape(-1)
+        np.testing.assert_array_equal(maps.pool.refs[1:maps.pool.top],
+                                      np.bincount(table, minlength=maps.pool.top)[1:])
+    finally:
+        tracker.close()
+
+
 def test_a_killed_tracking_process_leaves_the_results_as_they_were(sim_data, cfg, serial, monkeypatch):
     start, starts = PipelinedTracker.start, []
 

@@ -1,17 +1,18 @@
 """The tracker in a second process: the scans between two updates are tracked while the
-particles work on the next update (offline: a third of the ACES bag's time is tracking),
-and the worker matches some of the particles of each update (match_poses's helper) while
-the filter matches the others: as many as leave both about as busy (share).
+particles work on the next update (offline: a third of the ACES bag's time is tracking).
+The worker also matches some of the particles of each update (match_poses's helper), and
+weighs some and writes the scan into their maps (update_trimmed's writer, filter/loan.py),
+while the filter does the others: as many as leave both about as busy (the shares).
 
 The worker runs a Tracker (filter/track.py) on the same inputs, so the results are the
 same to the bit. It reads the best particle's map from the filter's tiles, shared memory
-(TileMaps(shared=True)): the map does not change between two updates, and the filter
-writes its maps only after waiting for the worker (Tracker.settle, before _observe).
+(TileMaps(shared=True)), as it was at the update: its tiles hold a reference until the
+next update (_hold), so the filter's writes copy them rather than write into them.
 
-Each particle's match is its own (the search window is the whole set's), so the share
-changes no result. The scans go to the worker as they come; the filter waits only where
-it needs the pose (the paths' prediction, after the particles' matches; an update; a
-reset) or the worker's matches. If the worker fails or dies, the tracker says why once
+Each particle's match, weight and map are its own (the search window is the whole set's),
+so the shares change no result. The scans go to the worker as they come; the filter waits
+only where it needs the pose (the paths' next poses, after the maps are written; an update;
+a reset) or the worker's share. If the worker fails or dies, the tracker says why once
 (failure) and does its work in this process from then on, the scans since the last wait
 first: the same results, slower.
 """
@@ -29,7 +30,7 @@ from fastslam.config import SlamConfig
 from fastslam.filter import loan
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.scan import Scan
-from fastslam.filter.tiles import SharedTiles, TileMaps, snapshot
+from fastslam.filter.tiles import SharedTiles, TileMaps, TilePool, snapshot
 from fastslam.filter.track import Tracker
 from fastslam.filter.trimmed import write_some
 from fastslam.match import MatchParams
@@ -91,6 +92,7 @@ class PipelinedTracker(Tracker):
         self._loan: tuple[loan.Loan, float] | None = None   # tiles lent for the writes, when
         self._lend = FIRST_LOAN                    # tiles lent per particle
         self.short = 0                             # writes the worker gave back for want of tiles
+        self._held: tuple[TilePool, NDArray[np.int32]] | None = None   # tiles of the map it tracks against
         super().__init__(cfg, params)
         ctx = multiprocessing.get_context("fork")
         self._conn, theirs = ctx.Pipe()
@@ -120,13 +122,32 @@ class PipelinedTracker(Tracker):
 
     def clear(self) -> None:
         self.settle()
+        self._hold(None, 0)
         super().clear()
 
     def start(self, pose: NDArray[np.float64], odom: NDArray[np.float64], ranges: NDArray[np.float64],
               maps: GridMaps, best: int) -> None:
         self.settle()
         super().start(pose, odom, ranges, maps, best)
+        self._hold(maps, best)
         self._send_maps("start", maps.view(best), super().state())
+
+    def _hold(self, maps: GridMaps | None, best: int) -> None:
+        """The tiles of the map the worker tracks against hold a reference until the next
+        start: the filter's writes meanwhile copy them (and no tile of it is freed), so
+        the filter need not wait for the tracking before it writes the scan into its maps.
+        A failed worker's scans are tracked here against the same tiles."""
+        if self._held is not None:
+            pool, ids = self._held
+            pool.release(ids)
+            self._held = None
+        if isinstance(maps, TileMaps) and not self.failure:
+            view = maps.view(best)
+            view.table = view.table.copy()   # type: ignore[attr-defined]   # as at the update, whatever is written
+            ids = view.table.reshape(-1)     # type: ignore[attr-defined]
+            maps.pool.hold(ids)
+            self._held = (maps.pool, ids)
+            self.grid = view   # what this process tracks against if the worker fails
 
     def track(self, odom: NDArray[np.float64], scan: Scan) -> None:
         if self.failure:
@@ -174,6 +195,7 @@ class PipelinedTracker(Tracker):
         if self._tracks:
             self._per_scan = _mean(self._per_scan, reply[3] / self._tracks)
         self._queued, self._tracks = [], 0
+        self._free_at = time.perf_counter()   # it has answered everything
 
     # -- matching some particles (match.matcher.Helper) --------------------------------
     def share(self, n: int) -> int:
@@ -205,18 +227,21 @@ class PipelinedTracker(Tracker):
             return match_some(grid, args, size)
         _, part, began, ended = reply
         self._per_particle = (here, _mean(there, (ended - began) / handed))
+        self._free_at = time.perf_counter()   # it has answered everything (the scans were sent before)
         self.matched += handed
         return part
 
     # -- writing some particles' maps (trimmed.Writer) ---------------------------------
     def write_share(self, n: int) -> int:
-        """The particles whose maps the worker writes: as many as leave both as busy."""
+        """The particles the worker weighs and writes: as many as leave it, after the scans
+        it still has to track, as busy as this process."""
         if self.failure or n < 2:
             return 0
         here, there = self._per_write
         if here <= 0 or there <= 0:
             return int(n * FIRST_SHARE)
-        return int(np.clip(round(n * here / (here + there)), 1, n - 1))
+        backlog = max(0.0, self._free_at - time.perf_counter())
+        return int(np.clip(round((n * here - backlog) / (here + there)), 0, n - 1))
 
     def submit_writes(self, grid: GridMaps, first: int, args: tuple[Any, ...], origins: NDArray[np.float64],
                       reach: float) -> None:
@@ -238,10 +263,10 @@ class PipelinedTracker(Tracker):
         reply = self._receive("written") if lent is not None else None
         if reply is not None and reply[1] is not None:
             assert isinstance(grid, TileMaps) and lent is not None
-            _, slots, ids, used, log_w, ended = reply
+            _, slots, ids, used, log_w, began, ended = reply
             loan.repay(grid, lent, slots, ids, used)
-            # from the hand-over to the worker's end (the messages' time counts: both sides end together)
-            self._per_write = (here, _mean(there, (ended - since) / (n - first)))
+            self._per_write = (here, _mean(there, (ended - began) / (n - first)))
+            self._free_at = time.perf_counter()
             self._lend = max(self._lend, 2 * -(-used // (n - first)))
             self.wrote += n - first
             return log_w
@@ -267,6 +292,7 @@ class PipelinedTracker(Tracker):
                 self._worker.join()
         self._conn.close()
         self.failure = self.failure or "closed"
+        self._hold(None, 0)
 
     def _send_maps(self, kind: str, maps: GridMaps, *rest: Any) -> None:
         """A message (kind, the maps' snapshot, *rest); maps that cannot be shared end the worker's use."""
@@ -369,14 +395,15 @@ def _serve(conn: Connection, filters_end: Connection, cfg: SlamConfig, params: M
 def _write(tiles: SharedTiles, snap: dict[str, Any], ids: NDArray[np.int32], args: tuple[Any, ...]
            ) -> tuple[Any, ...]:
     """The worker's weights and writes into the tiles lent (loan.py): ("written", slots, ids,
-    used, log-weights, when it ended: perf_counter, the same clock in both processes)."""
+    used, log-weights, when it began and ended)."""
+    began = time.perf_counter()
     maps = loan.lent_maps(tiles.maps(snap), tiles.tiles, ids)
     before = maps.table.copy()
     try:
         log_w = write_some(maps, args)
     except loan.OutOfTiles:   # the filter writes them itself
         return ("written", None)
-    return ("written", *loan.changes(maps, before), log_w, time.perf_counter())
+    return ("written", *loan.changes(maps, before), log_w, began, time.perf_counter())
 
 
 def _mean(mean: float, value: float) -> float:

@@ -147,7 +147,7 @@ class FastSlam:
         self._apart = np.zeros((n, n))   # best_particle medoid: distances between the paths, summed
         self._carried = np.zeros(n)      # each path's log-weight up to the last resampling (path_log_w)
         self._match: Match | None = None              # this update's gated match (match_weight)
-        self._proposed: Match | None = None           # ... trusted or not (trace)
+        self._proposed: Match | None = None           # ... trusted or not (trace, the paths)
         # This update's poses for map->odom and (path_match_scale 0) the paths: the trusted matches
         # themselves, not the samples drawn round them (those spread the particles; their noise adds to a path).
         self._centre: NDArray[np.float64] | None = None
@@ -209,8 +209,9 @@ class FastSlam:
         if self.cfg.proposal == "scan_match" and not first:
             matched = self._propose(beams)                      # 1b. scan-matching proposal
         log_w_before = self.log_w.copy() if self.trace is not None else None
-        self.tracker.settle()   # the maps are written next: the tracker has read them
         self._observe(beams)                                    # 2.+3. weights, then grid update
+        if self.cfg.proposal == "scan_match" and not first:
+            self._follow_path()
         log_w_step = None if log_w_before is None else self._log_w_step(log_w_before)
         w = self.weights
         self.best = int(np.argmax(w))
@@ -323,7 +324,6 @@ class FastSlam:
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
         match = self._match_gated(beams)
-        self._predict_path()
         if self.odom_scale is not None:
             self._learn_scale(match)
         if self.cfg.match_loop > 0 and self.updates > 1:     # (after one scan nothing was seen long ago)
@@ -335,18 +335,26 @@ class FastSlam:
             self._sample_around(match)
             self._match = match
             self.beyond_gate += int(match.beyond_gate is not None and bool(match.beyond_gate.any()))   # all trusted
-        else:   # nothing to correct them (path_match_scale): the paths follow their motion, not the noisy particles
-            self._path_next = self._path_predicted
         return int(match.trusted.sum())
 
-    def _predict_path(self) -> None:
-        """track_scans: each path's last pose moved by the live pose's motion since the last
-        update, matched at the scans between (real odometry jitters by degrees). Asked after
-        the particles' matches: a tracker in another process works on meanwhile."""
+    def _follow_path(self) -> None:
+        """path_match_scale: each path's next pose, its own last pose moved by its motion
+        (_move; track_scans: the live pose's, matched at the scans between, as real odometry
+        jitters by degrees), corrected by a trusted match where the scan pins the pose down.
+        Taken after the maps are written: a tracker in another process works on meanwhile."""
         if self._path_odom is not None:
             assert self.history.latest is not None
             self._path_predicted = compose(self.history.latest, self.tracker.motion_since_update(self._path_odom))
             self._path_odom = None
+        match = self._proposed
+        if match is None or not match.trusted.any():
+            # nothing to correct them: the paths follow their motion, not the noisy particles
+            self._path_next = self._path_predicted
+        elif self._path_predicted is not None and match.scan_information is not None:
+            # ICP's information scaled down: it counts every end point as independent
+            fused = fuse_with_motion(match.poses, self._path_predicted, motion_spread(self.cfg, self._motion_std),
+                                     self.cfg.path_match_scale * match.scan_information)
+            self._path_next = np.where(match.trusted[:, None], fused, self._path_predicted)
 
     def _matcher_spread(self) -> NDArray[np.float64]:
         """(3,) std-devs of the prior the matcher used this update (as its _prior floors them)."""
@@ -441,12 +449,6 @@ class FastSlam:
         sample[:, 2] = wrap_angle(sample[:, 2])
         self._centre = np.where(match.trusted[:, None], match.poses, self.poses)
         self._centre[:, 2] = wrap_angle(self._centre[:, 2])
-        if self._path_predicted is not None and match.scan_information is not None:
-            # the path: its own last pose moved by its motion (_move), corrected by the match where the
-            # scan pins the pose down (ICP's information scaled down: it counts every end point as independent)
-            fused = fuse_with_motion(match.poses, self._path_predicted, motion_spread(cfg, self._motion_std),
-                                     cfg.path_match_scale * match.scan_information)
-            self._path_next = np.where(match.trusted[:, None], fused, self._path_predicted)
         self.poses[match.trusted] = sample[match.trusted]
 
     def _observe(self, beams: Beams) -> None:

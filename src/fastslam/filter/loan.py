@@ -4,15 +4,16 @@ writes the scan into the maps of some particles while the filter writes the othe
 The tile pool is a memory file both processes map. The filter lends the worker free tile
 ids (lend: a few times what an update of a particle writes; all the tiles within the
 beams' reach would be 10-20 times that, and the pool would grow by as much), and the
-worker writes each tile it changes into one of those, a copy,
-never into a tile the filter knows (LentMaps). So its particles' tables change only when
-the filter takes its answer (repay): until then they hold the maps as before the scan,
-and a worker that fails leaves nothing to undo (refund; the filter writes them itself).
+worker writes each tile it changes into one of those, a copy, never into a tile the
+filter knows (LentMaps). So its particles' tables change only when the filter takes its
+answer (repay): until then they hold the maps as before the scan, and a worker that fails
+leaves nothing to undo (refund; the filter writes them itself).
 
-The filter's own writes meanwhile go in place only into tiles no other particle holds
-(reference count 1), and the worker's particles still hold theirs: the two never write
-the same tile, nor one that the other reads. The cells are those of one process's
-update, to the bit: each particle's update is its own.
+The filter's own writes meanwhile go in place only into tiles nothing else holds
+(reference count 1: no other particle, nor the map the worker tracks against), and the
+worker's particles still hold theirs: the two never write the same tile, nor one that
+the other reads. The cells are those of one process's update, to the bit: each
+particle's update is its own.
 """
 from __future__ import annotations
 

@@ -130,6 +130,32 @@ def test_the_map_the_worker_tracks_against_stays_as_at_the_update_while_the_filt
         tracker.close()
 
 
+def test_the_shares_time_each_process_s_own_work_not_its_wait_for_the_other(cfg, monkeypatch):
+    import types
+
+    from fastslam.filter.slam import FastSlam
+    clock = [0.0]
+    monkeypatch.setattr(pipeline, "time", types.SimpleNamespace(perf_counter=lambda: clock[0]))
+    tracker = PipelinedTracker(cfg, FastSlam.track_params(cfg))
+    part = (np.zeros((10, 3)),) + (None,) * 5
+
+    def receive(kind):
+        clock[0] = 9.0                      # the filter waits until the worker's answer comes
+        return ("matched", part, 1.0, 4.0)  # it matched its 10 particles from 1 s to 4 s
+    try:
+        monkeypatch.setattr(tracker, "_receive", receive)
+        assert tracker.share(30) == 10      # a third before anything is timed
+        tracker._handed = (10, 0.0)
+        clock[0] = 2.0                      # the filter matched its 20 in 2 s
+        assert tracker.result(None, (), 1) is part
+        assert tracker._per_particle == pytest.approx((0.1, 0.3))
+        assert tracker.share(30) == 8       # 30 x 0.1 s over 0.1 + 0.3 s a particle: 7.5
+        tracker._free_at = 10.4             # 1.4 s of scans still to track: 30 x 0.1 - 1.4 over 0.4 s
+        assert tracker.share(30) == 4
+    finally:
+        tracker.close()
+
+
 def test_a_killed_tracking_process_leaves_the_results_as_they_were(sim_data, cfg, serial, monkeypatch):
     start, starts = PipelinedTracker.start, []
 

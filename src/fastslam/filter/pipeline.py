@@ -142,9 +142,8 @@ class PipelinedTracker(Tracker):
             pool.release(ids)
             self._held = None
         if isinstance(maps, TileMaps) and not self.failure:
-            view = maps.view(best)
-            view.table = view.table.copy()   # type: ignore[attr-defined]   # as at the update, whatever is written
-            ids = view.table.reshape(-1)     # type: ignore[attr-defined]
+            view = maps.frozen(best)   # as at the update, whatever is written
+            ids = view.table.reshape(-1)
             maps.pool.hold(ids)
             self._held = (maps.pool, ids)
             self.grid = view   # what this process tracks against if the worker fails
@@ -199,16 +198,9 @@ class PipelinedTracker(Tracker):
 
     # -- matching some particles (match.matcher.Helper) --------------------------------
     def share(self, n: int) -> int:
-        """The particles to hand over: as many as leave the worker, after the scans it
-        still has to track, as busy as this process (the results do not depend on it)."""
+        """The particles to hand over (the results do not depend on it)."""
         self._particles = n
-        if self.failure or n < 2:
-            return 0
-        here, there = self._per_particle
-        if here <= 0 or there <= 0:
-            return int(n * FIRST_SHARE)
-        backlog = max(0.0, self._free_at - time.perf_counter())
-        return int(np.clip(round((n * here - backlog) / (here + there)), 0, n - 1))
+        return self._balanced(n, self._per_particle)
 
     def submit(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> None:
         self._send_maps("match", grid, args, size)
@@ -217,31 +209,20 @@ class PipelinedTracker(Tracker):
     def result(self, grid: GridMaps, args: tuple[Any, ...], size: int) -> MatchPart:
         assert self._handed is not None
         handed, since = self._handed
-        kept = self._particles - handed
-        here, there = self._per_particle
-        if kept > 0:   # the filter matched its own meanwhile
-            here = _mean(here, (time.perf_counter() - since) / kept)
+        mine = (time.perf_counter() - since, self._particles - handed)   # the filter matched its own meanwhile
         reply = self._receive("matched")
         if reply is None:
-            self._per_particle = (here, there)
+            self._per_particle = self._timed(self._per_particle, mine)
             return match_some(grid, args, size)
         _, part, began, ended = reply
-        self._per_particle = (here, _mean(there, (ended - began) / handed))
-        self._free_at = time.perf_counter()   # it has answered everything (the scans were sent before)
+        self._per_particle = self._timed(self._per_particle, mine, (began, ended, handed))
         self.matched += handed
         return part
 
     # -- writing some particles' maps (trimmed.Writer) ---------------------------------
     def write_share(self, n: int) -> int:
-        """The particles the worker weighs and writes: as many as leave it, after the scans
-        it still has to track, as busy as this process."""
-        if self.failure or n < 2:
-            return 0
-        here, there = self._per_write
-        if here <= 0 or there <= 0:
-            return int(n * FIRST_SHARE)
-        backlog = max(0.0, self._free_at - time.perf_counter())
-        return int(np.clip(round((n * here - backlog) / (here + there)), 0, n - 1))
+        """The particles the worker weighs and writes."""
+        return self._balanced(n, self._per_write)
 
     def submit_writes(self, grid: GridMaps, first: int, args: tuple[Any, ...], origins: NDArray[np.float64],
                       reach: float) -> None:
@@ -257,16 +238,13 @@ class PipelinedTracker(Tracker):
         n = grid.particles
         lent, since = self._loan if self._loan is not None else (None, 0.0)
         self._loan = None
-        here, there = self._per_write
-        if first > 0:
-            here = _mean(here, (time.perf_counter() - since) / first)
+        mine = (time.perf_counter() - since, first)   # the filter wrote its own meanwhile
         reply = self._receive("written") if lent is not None else None
         if reply is not None and reply[1] is not None:
             assert isinstance(grid, TileMaps) and lent is not None
             _, slots, ids, used, log_w, began, ended = reply
             loan.repay(grid, lent, slots, ids, used)
-            self._per_write = (here, _mean(there, (ended - began) / (n - first)))
-            self._free_at = time.perf_counter()
+            self._per_write = self._timed(self._per_write, mine, (began, ended, n - first))
             self._lend = max(self._lend, 2 * -(-used // (n - first)))
             self.wrote += n - first
             return log_w
@@ -276,8 +254,34 @@ class PipelinedTracker(Tracker):
         if lent is not None:
             assert isinstance(grid, TileMaps)
             loan.refund(grid, lent)
-        self._per_write = (here, there)
+        self._per_write = self._timed(self._per_write, mine)
         return write_some(grid.view(first, n), args)
+
+    # -- the shares' balance -------------------------------------------------------------
+    def _balanced(self, n: int, per: tuple[float, float]) -> int:
+        """Of n particles, the worker's share: as many as leave it, after the scans it still
+        has to track, as busy as this process (per: one particle's time here, there)."""
+        if self.failure or n < 2:
+            return 0
+        here, there = per
+        if here <= 0 or there <= 0:
+            return int(n * FIRST_SHARE)
+        backlog = max(0.0, self._free_at - time.perf_counter())
+        return int(np.clip(round((n * here - backlog) / (here + there)), 0, n - 1))
+
+    def _timed(self, per: tuple[float, float], mine: tuple[float, int],
+               theirs: tuple[float, float, int] | None = None) -> tuple[float, float]:
+        """per followed by a share's times: this process's (seconds, particles), the worker's
+        from its start to its end (its answer: it has nothing left)."""
+        here, there = per
+        seconds, kept = mine
+        if kept > 0:
+            here = _mean(here, seconds / kept)
+        if theirs is not None:
+            began, ended, handed = theirs
+            there = _mean(there, (ended - began) / handed)
+            self._free_at = time.perf_counter()
+        return here, there
 
     def close(self) -> None:
         """Ends the worker; what it was sent since the last wait is dropped (settle first to keep it)."""

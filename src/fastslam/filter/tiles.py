@@ -395,13 +395,20 @@ class TileMaps(GridMaps):
         pool.push_free(self.pool.free_ids())
         return other
 
-    def view(self, first: int, stop: int | None = None) -> GridMaps:
+    def view(self, first: int, stop: int | None = None) -> TileMaps:
         """As GridMaps.view: the particles' tables (a view) over the same tiles, for reads."""
         stop = first + 1 if stop is None else stop
         some = TileMaps.__new__(TileMaps)
         some.__dict__.update(self.__dict__)
         some.particles, some.origin = stop - first, self.origin.copy()
         some.table = self.table[first:stop]
+        return some
+
+    def frozen(self, n: int) -> TileMaps:
+        """Particle n's map as it is now, for reads: its table copied, the tiles shared (they
+        stay as they are while held: TilePool.hold)."""
+        some = self.view(n)
+        some.table = some.table.copy()
         return some
 
     def cells(self, first: int, stop: int, lo: tuple[int, int] | None = None, hi: tuple[int, int] | None = None,

@@ -30,9 +30,9 @@ them, map.png draws the reference too, and error.png plots both paths after alig
 and the error over time. A progress bar (tqdm) runs on a terminal, unless --quiet.
 
 With track_scans, on a machine of two cores or more, a second process tracks the scans
-between updates while the particles work on the next update, and matches some of the
-particles (filter/pipeline.py): the same results to the bit, in less wall time;
---serial keeps all the work in this one.
+between updates while the particles work on the next update, matches some of the
+particles, and weighs some and writes the scan into their maps (filter/pipeline.py): the
+same results to the bit, in less wall time; --serial keeps all the work in this one.
 """
 from __future__ import annotations
 
@@ -351,8 +351,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quiet", action="store_true", help="no progress bar (there is none off a terminal)")
     parser.add_argument("--serial", action="store_true",
                         help="all the work in this process (default with track_scans, on a machine of two cores or "
-                             "more: a second process tracks the scans between updates and matches some particles; "
-                             "the same results)")
+                             "more: a second process tracks the scans between updates, matches some particles, "
+                             "weighs some and writes their maps; the same results)")
     args = parser.parse_args(argv)
     out = Path(args.out)
     try:

@@ -141,7 +141,9 @@ def lent_maps(maps: TileMaps, tiles: NDArray[np.int8], ids: NDArray[np.int32]) -
     return lent
 
 
-def changes(maps: LentMaps, before: NDArray[np.int32]) -> tuple[Any, ...]:
-    """The worker's answer for repay: (table slots changed, their tiles, ids used)."""
-    slots = np.flatnonzero(maps.table.reshape(-1) != before.reshape(-1))
-    return slots, maps.table.reshape(-1)[slots], maps.pool.used
+def changes(maps: LentMaps) -> tuple[Any, ...]:
+    """The worker's answer for repay: (table slots changed, their tiles, ids used). The
+    slots changed are those holding a lent tile now: no table held one before."""
+    table = maps.table.reshape(-1)
+    slots = np.flatnonzero(maps.pool.lent[table])
+    return slots, table[slots], maps.pool.used

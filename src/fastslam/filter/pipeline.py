@@ -402,12 +402,11 @@ def _write(tiles: SharedTiles, snap: dict[str, Any], ids: NDArray[np.int32], arg
     used, log-weights, when it began and ended)."""
     began = time.perf_counter()
     maps = loan.lent_maps(tiles.maps(snap), tiles.tiles, ids)
-    before = maps.table.copy()
     try:
         log_w = write_some(maps, args)
     except loan.OutOfTiles:   # the filter writes them itself
         return ("written", None)
-    return ("written", *loan.changes(maps, before), log_w, began, time.perf_counter())
+    return ("written", *loan.changes(maps), log_w, began, time.perf_counter())
 
 
 def _mean(mean: float, value: float) -> float:

@@ -206,11 +206,12 @@ class FastSlam:
         grew, clipped, refused = self._cover_beams()
         matched = 0
         self._proposed = None
-        if self.cfg.proposal == "scan_match" and not first:
+        proposing = self.cfg.proposal == "scan_match" and not first
+        if proposing:
             matched = self._propose(beams)                      # 1b. scan-matching proposal
         log_w_before = self.log_w.copy() if self.trace is not None else None
         self._observe(beams)                                    # 2.+3. weights, then grid update
-        if self.cfg.proposal == "scan_match" and not first:
+        if proposing:
             self._follow_path()
         log_w_step = None if log_w_before is None else self._log_w_step(log_w_before)
         w = self.weights

@@ -60,9 +60,8 @@ def _lent_write(m: TileMaps, first: int, args: tuple, per_particle: int) -> tupl
     lent = loan.lend(m, first, m.particles, per_particle or bound, bound)
     reader = SharedTiles(writable=True)
     theirs = loan.lent_maps(reader.maps(snapshot(m.view(first, m.particles))), reader.tiles, lent.ids)
-    before = theirs.table.copy()
     log_w = write_some(theirs, _part(args, first, m.particles))
-    return lent, loan.changes(theirs, before), log_w
+    return lent, loan.changes(theirs), log_w
 
 
 def test_the_worker_writes_only_lent_tiles_and_repaid_the_maps_are_one_process_s(maps):

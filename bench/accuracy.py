@@ -138,8 +138,8 @@ def real_case(name: str, seed: int, config: Path, sets: list[str], work: Path, p
 
 
 def corrected_case(name: str, seed: int, config: Path, sets: list[str], work: Path, phase: int = 0,
-                   serial: bool = False) -> dict:
-    bag = converted(name, seed)
+                   serial: bool = False, noise: float = 1.0) -> dict:
+    bag = converted(name, seed, noise)
     out = work / f"{name}-{seed}-p{phase}"
     row = run_offline(bag, out, config, seed, sets, phase, serial)
     ref_t, ref = read_trajectory(bag.with_name(bag.name + ".gt.txt"))
@@ -208,9 +208,10 @@ def seed_list(words: list[str], what: str = "seed", flag: str = "--seeds") -> li
 
 
 def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], work: Path,
-              jobs: int, phases: list[int] | None = None) -> list[dict]:
+              jobs: int, phases: list[int] | None = None, noise: float = 1.0) -> list[dict]:
     """Every (log, phase, seed) case, jobs at a time; each log's (and phase's) table line
-    printed once its cases are done, the logs, phases and seeds in the order given."""
+    printed once its cases are done, the logs, phases and seeds in the order given; the
+    corrected logs with odometry noise of that level."""
     failed = threading.Event()   # a failed case stops the bench: no case starts after it
     phases = [0] if phases is None else list(dict.fromkeys(phases))   # each phase once: one line each
 
@@ -219,7 +220,9 @@ def run_cases(logs: list[str], seeds: list[int], config: Path, sets: list[str], 
             raise CancelledError(f"{name} seed {seed}{f' phase {phase}' if phase else ''}: not run after a failed case")
         try:
             # cases side by side keep the cores busy: each runs in one process (the same results)
-            return (real_case if name in REAL else corrected_case)(name, seed, config, sets, work, phase, jobs > 1)
+            if name in REAL:
+                return real_case(name, seed, config, sets, work, phase, jobs > 1)
+            return corrected_case(name, seed, config, sets, work, phase, jobs > 1, noise)
         except BaseException:
             failed.set()
             raise
@@ -251,6 +254,9 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"phases of the matcher's pooling blocks, 0-{PHASES[-1]} (bench.phase; default 0)")
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once (time targets: 1)")
     ap.add_argument("--json", metavar="FILE", help="also write every row here")
+    ap.add_argument("--odom-noise", type=float, default=1.0, metavar="LEVEL",
+                    help="the corrected logs' simulated odometry noise (default 1, issue 16's targets; 0: the "
+                         "log's own poses as odometry, what the scans alone cost)")
     args = ap.parse_args(argv)
     try:
         args.seeds = seed_list(args.seeds)
@@ -262,11 +268,15 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--phases: {outside[0]} is not a phase of the matcher's blocks (0 to {PHASES[-1]})")
     if args.jobs < 1:
         ap.error(f"--jobs: {args.jobs} is not a number of cases at once (1 or more)")
+    if not args.odom_noise >= 0.0:   # (nan too)
+        ap.error(f"--odom-noise: {args.odom_noise:g} is not a noise level (0 or more)")
     config = Path(args.config).resolve()
     shown = config.relative_to(ROOT) if ROOT in config.parents else config  # no is_relative_to on 3.8
     print(f"accuracy: {shown}"
           f"{' ' + ' '.join(args.set) if args.set else ''}, seeds {args.seeds}"
-          f"{f', phases {args.phases}' if args.phases != [0] else ''}, data {data_path('aces.bag').parent}"
+          f"{f', phases {args.phases}' if args.phases != [0] else ''}"
+          f"{f', odometry noise {args.odom_noise:g}' if args.odom_noise != 1.0 else ''}"
+          f", data {data_path('aces.bag').parent}"
           f"{f', {args.jobs} cases at once (wall and CPU seconds share the machine)' if args.jobs > 1 else ''}")
     print("rel: relations mean [m] of the pose at every scan (max: worst single relation); ATE [m] after "
           "alignment; live: the same for map->odom's poses (median); smoothed: the same for "
@@ -277,7 +287,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{'wall s':>7} {'cpu s':>6} {'peak MB':>7} {'updates/scans'}")
     with tempfile.TemporaryDirectory(prefix="bench-accuracy-") as tmp:
         try:
-            rows = run_cases(args.logs, args.seeds, config, args.set, Path(tmp), args.jobs, args.phases)
+            rows = run_cases(args.logs, args.seeds, config, args.set, Path(tmp), args.jobs, args.phases,
+                             args.odom_noise)
         except RuntimeError as err:   # a case's command failed: its last line, no traceback
             print(f"bench.accuracy: {err}", file=sys.stderr)
             return 1

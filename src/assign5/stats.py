@@ -85,6 +85,7 @@ class Stats:
                 "dropped": dropped, "rules": rules,
                 "map_growth_refused": self.slam.refusals, "match_recoveries": self.slam.recoveries,
                 "match_loops": self.slam.loops,
+                "match_loops_spread": self.slam.loops_spread,
                 "odometry_scale": None if self.slam.odom_scale is None else self.slam.odom_scale.summary(),
                 "odometry_stalls_tracked": self.slam.stalls, "matches_beyond_gate": self.slam.beyond_gate,
                 "known_cells": self.maps.known_cells,

@@ -147,6 +147,7 @@ class OfflineResult:
                 "dropped": self.dropped, "odometry_rules": self.rules, "events": self.events,
                 "map_growth_refused": self.slam.refusals, "match_recoveries": self.slam.recoveries,
                 "match_loops": self.slam.loops,
+                "match_loops_spread": self.slam.loops_spread,
                 "odometry_scale": None if self.slam.odom_scale is None else self.slam.odom_scale.summary(),
                 "odometry_stalls_tracked": self.slam.stalls, "matches_beyond_gate": self.slam.beyond_gate,
                 "resets": len(self.reset_maps), "second_process": self.second_process,

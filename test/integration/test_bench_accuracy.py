@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from bench import accuracy, phase
+from fastslam.geometry import wrap_angle
 from fastslam.io.trajectory_files import read_trajectory
 
 
@@ -115,3 +116,27 @@ def test_each_phase_is_a_case_of_its_own_and_phase_0_is_the_offline_tool_itself(
     assert accuracy.main(["--logs", "seattle", "--seeds", "0", "--json", str(plain)]) == 0
     assert json.loads(plain.read_text())[0]["error"] == rows[0]["error"]   # phase 0: the same run to the bit
     assert rows[1]["error"] != rows[0]["error"]                             # the blocks moved: another run
+
+
+def test_odometry_noise_0_feeds_the_log_s_own_poses_and_leaves_the_scans_cost(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(accuracy, "CACHE", tmp_path / "cache")
+    runs = {}
+    for level in ("0", "1"):
+        out = tmp_path / f"noise{level}.json"
+        assert accuracy.main(["--logs", "seattle", "--seeds", "0", "--odom-noise", level, "--json", str(out)]) == 0
+        runs[level] = json.loads(out.read_text())[0]
+    assert "odometry noise 0," in capsys.readouterr().out       # the header says which
+    bag = accuracy.converted("seattle", 0, 0.0)
+    assert "-noise0-" in bag.name
+    _, odom = read_trajectory(bag.with_name(bag.name + ".odom.txt"))
+    _, truth = read_trajectory(bag.with_name(bag.name + ".gt.txt"))
+    assert abs(odom[:, :2] - truth[:, :2]).max() < 1e-9         # the odometry is the log's poses
+    assert abs(wrap_angle(odom[:, 2] - truth[:, 2])).max() < 1e-9
+    # seattle, seed 0: 0.049 m with the log's poses as odometry, 0.094 m with the noise
+    assert runs["0"]["error"] < 0.75 * runs["1"]["error"], runs
+
+
+def test_a_negative_odometry_noise_is_refused_before_any_case(capsys):
+    with pytest.raises(SystemExit) as stop:
+        accuracy.main(["--logs", "seattle", "--seeds", "0", "--odom-noise", "-1"])
+    assert stop.value.code == 2 and "--odom-noise: -1 is not a noise level" in capsys.readouterr().err

@@ -285,6 +285,10 @@ class GridMaps:
         return CellSpace(self, self.logodds.reshape(-1), rows=h, stride=w, y0=0, x0=0, lead=first,
                          size=self.logodds.size)
 
+    def clear(self) -> None:
+        """Every map back to unknown (the geometry stays)."""
+        self.logodds.fill(0)
+
     def reorder(self, parent: NDArray[np.intp]) -> None:
         """Slot s takes the map of slot parent[s]; only slots that change are copied."""
         moved = np.flatnonzero(parent != np.arange(len(parent)))

@@ -75,6 +75,20 @@ class History:
             j = int(self._parent[t][j])
         return out
 
+    def collapse(self, particle: int) -> None:
+        """Every slot takes the path of slot `particle`: the history becomes one lineage,
+        its rows but the newest in the trunk."""
+        self._poses[-1][:] = self._poses[-1][particle]
+        self._parent[-1][:] = self._parent[-1][particle]
+        self._prune()
+
+    def rewrite(self, first: int, poses: NDArray[np.float64]) -> None:
+        """Rows first.. of the trunk take poses (K, 3) (after collapse: the one path)."""
+        stop = first + len(poses)
+        if first < 0 or stop > self._trunk_len:
+            raise ValueError(f"rows {first}..{stop - 1} are not all in the trunk (its {self._trunk_len} rows)")
+        self._trunk[first:stop, 1:] = poses
+
     def _prune(self) -> None:
         """Drops the steps no living particle descends from; moves the shared ones to the trunk."""
         keep = np.arange(len(self._poses[-1]))  # rows of step t that living particles descend from

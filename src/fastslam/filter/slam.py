@@ -19,6 +19,7 @@ from fastslam.filter.best import pairwise_distances, weighted_medoid
 from fastslam.filter.budget import Limits
 from fastslam.filter.grid import GridMaps
 from fastslam.filter.history import History
+from fastslam.filter.loop import ScanStore, loop_start, spread_jump
 from fastslam.filter.motion import (
     OdometryArc,
     odometry_std,
@@ -109,6 +110,7 @@ class FastSlam:
         self.recoveries = 0  # updates where the wider search (match_recover) found a trusted match
         self.beyond_gate = 0  # updates where a match beyond match_gate was trusted for its score
         self.loops = 0        # updates where match_loop moved particles to a place found again
+        self.loops_spread = 0  # ... and the jump was spread back along the path (loop_spread)
         self.trace: Callable[[UpdateTrace], None] | None = None   # called after each update (diagnostics)
         # odom_scale: the odometry's scale, learnt from the matches; kept through reset() (same wheels)
         self.odom_scale = OdometryScale(cfg.odom_scale_prior) if cfg.odom_scale else None
@@ -156,6 +158,10 @@ class FastSlam:
         self._path_predicted: NDArray[np.float64] | None = None
         self._path_odom: NDArray[np.float64] | None = None   # ... (track_scans) to be moved to this odometry
         self._path_next: NDArray[np.float64] | None = None
+        # loop_spread: every processed scan's beams, and this update's loop jump (which particles
+        # moved, from where, to where)
+        self._scans = ScanStore() if cfg.loop_spread else None
+        self._loop_jump: tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]] | None = None
 
     @staticmethod
     def track_params(cfg: SlamConfig) -> MatchParams:
@@ -198,6 +204,8 @@ class FastSlam:
             return StepInfo(processed=False, neff=neff(self.weights), best=self.best,
                             seconds=time.perf_counter() - start)
         beams = select_beams(scan, self.cfg)
+        if self._scans is not None:
+            self._scans.append(beams)
         if first:
             self._anchor(odom)
         else:
@@ -226,6 +234,9 @@ class FastSlam:
         centre, self._centre = (self.poses if self._centre is None else self._centre), None
         path, self._path_next = (centre if self._path_next is None else self._path_next), None
         self.history.append(scan.stamp, path, parent)
+        jump, self._loop_jump = self._loop_jump, None
+        if jump is not None and self._spread_loop(jump, parent):
+            centre = self.poses
         if self.trace is not None and log_w_step is not None:
             predicted = None if first or self.cfg.match_prior != "motion" else self._predicted.copy()
             self.trace(UpdateTrace(scan.stamp, predicted, self._proposed, log_w_step, w,
@@ -409,7 +420,54 @@ class FastSlam:
         if not take.any() or take.mean() < cfg.match_recover_share:
             return match
         self.loops += 1
+        if cfg.loop_spread:
+            self._loop_jump = (take, match.poses.copy(), wide.poses.copy())
         return taken(match, wide, take)
+
+    def _spread_loop(self, jump: tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]],
+                     parent: NDArray[np.intp]) -> bool:
+        """loop_spread (filter/loop.py): the best particle's jump spread back along its path
+        since the loop's start, its map written again along the new path, and every particle
+        given that path and map (the weights even). False where the jump stays: the best
+        particle did not jump, or its path holds no single loop back to the place found."""
+        cfg = self.cfg
+        moved, before, after = jump
+        b = self.best
+        src = int(parent[b])            # the best particle's slot before resampling
+        if not moved[src]:
+            return False
+        path = self.history.path(b)[:, 1:]
+        start, _ = loop_start(path, cfg.loop_spread_radius, cfg.loop_spread_recent)
+        if start is None:
+            return False
+        path = spread_jump(path, start, before[src], after[src])
+        n = len(self.poses)
+        self.grid.reorder(np.full(n, b))
+        self.poses[:] = self.poses[b]
+        self.log_w[:] = 0.0
+        self._carried[:] = 0.0
+        self._apart[:] = 0.0
+        self.history.collapse(b)
+        self.history.rewrite(start, path[start:-1])
+        self._write_again(path)
+        self.loops_spread += 1
+        return True
+
+    def _write_again(self, path: NDArray[np.float64]) -> None:
+        """Every map rebuilt from the scans kept, the k-th written at path[k] (T, 3), one
+        map written and shared by all (they hold the same path)."""
+        cfg, scans = self.cfg, self._scans
+        assert scans is not None and len(scans) == len(path), "one kept scan per processed update"
+        self.grid.clear()
+        one = self.grid.view(0)
+        for k in range(len(path)):   # as the updates wrote them, in order
+            beams = scans.beams(k)
+            x, y = transform_points(path[k:k + 1], np.array([beams.mount], dtype=np.float64))
+            trimmed.update_trimmed(one, np.concatenate([x, y], axis=1), path[k:k + 1, 2, None] + beams.angles[None, :],
+                                   beams, self._steps, max_range=cfg.max_range, groups=TRIM_GROUPS,
+                                   free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step,
+                                                                   cfg.free_beam_spacing))
+        self.grid.reorder(np.zeros(len(self.poses), dtype=np.intp))
 
     def _wide_match(self, beams: Beams, first: int, stop: int) -> Match:
         """Particles first..stop-1 matched over match_loop_xy / match_loop_theta round their

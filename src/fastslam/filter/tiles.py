@@ -427,6 +427,12 @@ class TileMaps(GridMaps):
             return TilePatch(self, first, stop, (r0, r1, c0, c1))
         return TileLookup(self, first, stop, (r0, r1, c0, c1))
 
+    def clear(self) -> None:
+        """Every map back to unknown: the tables' tiles released (a tile something else
+        holds, as the tracked map, stays until it lets go), the tables all id 0."""
+        self.pool.release(self.table.reshape(-1))
+        self.table.fill(0)
+
     def reorder(self, parent: NDArray[np.intp]) -> None:
         """Slot s takes the map of slot parent[s]: table rows copied, tiles shared."""
         moved = np.flatnonzero(parent != np.arange(len(parent)))

@@ -127,3 +127,22 @@ def test_latest_is_every_slots_newest_pose_through_pruning(monkeypatch):
         h.append(float(k), poses_of_step(k, 4), np.zeros(4, dtype=np.intp))
         np.testing.assert_array_equal(h.latest, poses_of_step(k, 4))
         np.testing.assert_array_equal(h.latest, np.stack([h.path(j)[-1, 1:] for j in range(4)]))
+
+
+def test_a_collapsed_history_is_one_path_whose_trunk_rows_can_be_rewritten():
+    h = History()
+    steps, parents = [], []
+    for k, parent in enumerate([np.arange(3), np.array([2, 2, 0]), np.array([1, 0, 0])]):
+        steps.append(poses_of_step(k, 3))
+        parents.append(parent)
+        h.append(float(k), steps[-1], parent)
+    want = naive_path(steps, parents, 1)
+    h.collapse(1)
+    assert h.settled == 2 and h.kept_rows == 2 + 3          # the trunk, and the newest step's slots
+    for slot in range(3):
+        np.testing.assert_array_equal(h.path(slot), want)
+    h.rewrite(1, np.array([[7.0, 8.0, 0.5]]))
+    np.testing.assert_array_equal(h.path(2)[1], [1.0, 7.0, 8.0, 0.5])
+    np.testing.assert_array_equal(h.path(2)[[0, 2]], want[[0, 2]])
+    with pytest.raises(ValueError, match="not all in the trunk"):
+        h.rewrite(1, np.zeros((2, 3)))                       # row 2 is the newest step's, not the trunk's

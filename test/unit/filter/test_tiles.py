@@ -255,3 +255,19 @@ def test_only_maps_in_shared_memory_can_be_snapshot():
     from fastslam.filter.tiles import snapshot
     with pytest.raises(ValueError, match="not shared"):
         snapshot(TileMaps(1, (64, 64), 0.05, (0.0, 0.0)).view(0))
+
+
+def test_cleared_maps_read_unknown_and_free_every_tile_nothing_else_holds():
+    maps = _tiles(2)
+    maps.put(0, [0, 5], [0, 9], [3, 4])                        # particle 0: tiles (0, 0) and (1, 1)
+    maps.put(1, 0, 0, 5)                                       # particle 1: tile (0, 0), its own
+    held = int(maps.table[0, 1, 1])
+    maps.pool.hold(np.array([held]))                           # as the tracked map holds its tiles
+    maps.clear()
+    assert not maps.table.any() and not maps.particle_map(0).any() and not maps.particle_map(1).any()
+    assert maps.pool.used == 1 and maps.pool.refs[held] == 1   # the held tile stays, and reads as it was
+    assert sorted(maps.pool.free_ids().tolist()) == sorted({1, 2, 3} - {held})
+    dense = GridMaps(2, (8, 16), 1.0, (0.0, 0.0))
+    dense.put([0, 1], [2, 3], [4, 5], [7, -7])
+    dense.clear()
+    assert not dense.logodds.any()

@@ -12,6 +12,7 @@ of the path lies near the place found, the jump is left as it is.
 """
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -76,7 +77,8 @@ def loop_start(path: NDArray[np.float64], radius: float, recent: float) -> tuple
     nearest the last one among those more than `recent` metres of travel before the
     jump (the jump is the last step: its length is not travel). None, and why, when
     that pose is farther than radius, or when the path between came within radius of
-    a place seen before it (more than `recent` metres from both ends: an inner loop)."""
+    a place seen before it (an inner loop: poses more than twice the radius of travel
+    from the start on either side, and more than `recent` before the jump)."""
     d = travelled(path[:-1, :2])
     end = path[-1, :2]
     before = np.flatnonzero(d < d[-1] - recent)
@@ -86,8 +88,10 @@ def loop_start(path: NDArray[np.float64], radius: float, recent: float) -> tuple
     start = int(before[np.argmin(gap)])
     if gap.min() > radius:
         return None, f"the path's nearest pose lies {gap.min():.2f} m from the place found"
-    older = np.flatnonzero(d < d[start] - recent)
-    between = np.flatnonzero((d > d[start] + recent) & (d < d[-1] - recent))
+    # the path near the start is the start's own place: a pose twice the radius of travel away that
+    # comes back within the radius has come back (the end's approach: `recent`, as above)
+    older = np.flatnonzero(d < d[start] - 2 * radius)
+    between = np.flatnonzero((d > d[start] + 2 * radius) & (d < d[-1] - recent))
     if len(older) and len(between):
         near = float(nearest_distances(path[between, :2], path[older, :2]).min())
         if near < radius:
@@ -98,19 +102,28 @@ def loop_start(path: NDArray[np.float64], radius: float, recent: float) -> tuple
 def spread_jump(path: NDArray[np.float64], start: int, before: NDArray[np.float64],
                 after: NDArray[np.float64]) -> NDArray[np.float64]:
     """path (T, 3) with the jump before -> after (3,) (the last pose, moved from
-    `before` to `after`) spread over rows start..T-2: row k moves by the fraction of the
-    travel from row start to row T-2 done at k, the rotation about `before`'s position.
-    Row T-2 moves all the way; the last row (already moved) and rows before start stay."""
+    `before` to `after`) spread over rows start..T-2, as a traverse is adjusted: each
+    step turned by its share of the jump's turn (the share of the travel from row start
+    done at its middle), then each pose moved by its share of what is left, so that row
+    T-2 lands where the jump takes it (its pose relative to `before` kept relative to
+    `after`). Row start, the rows before it and the last row stay."""
     out = path.copy()
-    rows = np.arange(start + 1, len(path) - 1)     # row start does not move
-    if len(rows) == 0:
+    if len(path) - 2 <= start:
         return out
-    d = travelled(path[start:-1, :2])[1:]
-    share = d / d[-1] if d[-1] > 0 else np.ones(len(d))
-    turn = share * float(wrap_angle(after[2] - before[2]))
-    c, s = np.cos(turn), np.sin(turn)
-    v = path[rows, :2] - before[:2]
-    out[rows, 0] = before[0] + c * v[:, 0] - s * v[:, 1] + share * (after[0] - before[0])
-    out[rows, 1] = before[1] + s * v[:, 0] + c * v[:, 1] + share * (after[1] - before[1])
-    out[rows, 2] = wrap_angle(path[rows, 2] + turn)
+    seg = path[start:-1]
+    steps = np.diff(seg[:, :2], axis=0)                                   # (K, 2) world-frame steps
+    d = np.concatenate([[0.0], np.cumsum(np.hypot(steps[:, 0], steps[:, 1]))])
+    share = d / d[-1] if d[-1] > 0 else np.linspace(0.0, 1.0, len(d))
+    turn = float(wrap_angle(after[2] - before[2]))
+    mid = 0.5 * (share[:-1] + share[1:]) * turn
+    c, s = np.cos(mid), np.sin(mid)
+    turned = np.stack([c * steps[:, 0] - s * steps[:, 1], s * steps[:, 0] + c * steps[:, 1]], axis=1)
+    xy = seg[0, :2] + np.concatenate([np.zeros((1, 2)), np.cumsum(turned, axis=0)])
+    # where the jump takes row T-2: after composed with its pose relative to before
+    ct, st = math.cos(turn), math.sin(turn)
+    v = seg[-1, :2] - before[:2]
+    target = after[:2] + np.array([ct * v[0] - st * v[1], st * v[0] + ct * v[1]])
+    xy += share[:, None] * (target - xy[-1])
+    out[start + 1:-1, :2] = xy[1:]
+    out[start + 1:-1, 2] = wrap_angle(seg[1:, 2] + share[1:] * turn)
     return out

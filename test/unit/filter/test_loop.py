@@ -32,13 +32,18 @@ def test_each_row_moves_by_its_share_of_the_travel_since_the_loop_s_start():
     np.testing.assert_allclose(out, [[0, 0, 0], [1, 0, 0], [2, 0.2, 0], [3, 0.4, 0], [4, 0.4, 0]], atol=1e-12)
 
 
-def test_the_turn_of_the_jump_is_spread_about_where_the_jump_began():
-    # a quarter turn at (4, 0): row 3 (1 m behind) turns 90 degrees about it to (4, -1), row 2 45 degrees
+def test_each_step_turns_by_its_share_of_the_jump_s_turn_and_the_rest_is_spread_by_travel():
+    # a quarter turn at (4, 0): row 2 (1 m behind it) must land at (4, -1) turned 90 degrees; the two steps
+    # (0 -> 1, 1 -> 2, 1 m each) turn by the shares at their middles (1/4 and 3/4 of 90 degrees): row 1 at
+    # (1 + cos 22.5, sin 22.5), row 2 at that + (cos 67.5, sin 67.5); then each row moves by its share
+    # (0, 1/2, 1) of the gap from there to (4, -1)
     path = np.vstack([_line([1.0, 2.0, 3.0]), [[4.0, 0.0, math.pi / 2]]])
     out = spread_jump(path, 0, np.array([4.0, 0.0, 0.0]), np.array([4.0, 0.0, math.pi / 2]))
-    r = math.sqrt(0.5) * 2
-    np.testing.assert_allclose(out[0], [1.0, 0.0, 0.0], atol=1e-12)
-    np.testing.assert_allclose(out[1], [4 - r, -r, math.pi / 4], atol=1e-12)
+    one = np.array([1 + math.cos(math.pi / 8), math.sin(math.pi / 8)])
+    two = one + [math.cos(3 * math.pi / 8), math.sin(3 * math.pi / 8)]
+    gap = np.array([4.0, -1.0]) - two
+    np.testing.assert_array_equal(out[0], path[0])
+    np.testing.assert_allclose(out[1], [*(one + gap / 2), math.pi / 4], atol=1e-12)   # (2.7706, -0.7706)
     np.testing.assert_allclose(out[2], [4.0, -1.0, math.pi / 2], atol=1e-12)
     np.testing.assert_array_equal(out[3], path[3])
 

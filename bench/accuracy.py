@@ -2,6 +2,7 @@
 
     PYTHONPATH=src:. python -m bench.accuracy [--config config/real.yaml] [--set key=value]... [--seeds 0 1 2]
                              [--logs csail aces intel ...] [--phases 0-3] [--jobs N] [--json FILE]
+                             [--odom-noise LEVEL]
 
 Every case runs `python -m fastslam.offline BAG --out DIR --config ... --seed S`, the
 command a user runs, in its own process, one at a time (`--jobs N`: N at a time, for
@@ -18,7 +19,8 @@ change to the ACES bag over the phases, not over its seeds alone (round 26).
   `trajectory_smoothed.txt` (hindsight between processed scans: a second summary line);
 - each corrected CARMEN log turned into a bag with simulated odometry noise
   (`python -m fastslam.carmen_to_bag LOG --out BAG --odom-noise 1 --seed S`), scored by the
-  ATE of `trajectory_scans.txt` (and of the live and smoothed ones) against the log's poses.
+  ATE of `trajectory_scans.txt` (and of the live and smoothed ones) against the log's poses
+  (`--odom-noise 0`: the log's own poses as odometry, what the scans alone cost).
 
 Per log: the error of each seed, their median and the worst, the worst single relation
 error (relations), wall and CPU seconds of the whole command and its peak memory (the

@@ -176,7 +176,7 @@ class SlamConfig:
                                      "within this [m], and the path between came no nearer a place seen before "
                                      "it (else the jump stays)")
     loop_spread_recent: float = _num(20.0, 0.0, 10000.0, "loop_spread: the loop's start is sought more than this "
-                                     "travel [m] before the jump (and the inner loops, this far from its ends)")
+                                     "travel [m] before the jump (and an inner loop's return, as far)")
     path_match_scale: float = _num(0.0, 0.0, 1000.0, "published paths (scan_match): each particle's last path "
                                    "pose moved by the odometry (track_scans: the tracked motion), corrected by its "
                                    "match with the ICP's information scaled by this (ICP counts every end point as "

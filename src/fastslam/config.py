@@ -169,9 +169,10 @@ class SlamConfig:
     match_loop_xy: float = _num(1.0, 0.0, 10.0, "match_loop: search half-width in x and y [m]")
     match_loop_theta: float = _num(0.15, 0.0, math.pi, "match_loop: search half-width in heading [rad]")
     loop_spread: bool = field(default=False, metadata={
-        "doc": "match_loop: a loop found is closed along the path: the best particle's jump spread back along its "
-               "path since it was last at that place (by distance travelled), its map written again from the scans "
-               "kept (9 bytes a beam per update) at the new poses, and every particle takes that path and map"})
+        "doc": "match_loop (nothing without it): a loop found is closed along the path: the best particle's jump "
+               "spread back along its path since it was last at that place (by distance travelled), its map written "
+               "again from the scans kept (9 bytes a beam per update) at the new poses, and every particle takes "
+               "that path and map"})
     loop_spread_radius: float = _num(3.0, 0.0, 100.0, "loop_spread: the path's pose nearest the place found lies "
                                      "within this [m], and the path between came no nearer a place seen before "
                                      "it (else the jump stays)")
@@ -214,9 +215,9 @@ class SlamConfig:
         if self.match_short_free > 0 and self.match_max_free >= 1.0:
             raise ConfigError(f"match_short_free={self.match_short_free} needs match_max_free < 1 (the free-space "
                               f"check it relaxes)")
-        if self.loop_spread and (self.match_loop <= 0 or self.weight_model != "likelihood"):
-            raise ConfigError("loop_spread needs match_loop > 0 (it spreads the jumps match_loop makes) and "
-                              "weight_model=likelihood (it writes the maps again as that model's updates do)")
+        if self.loop_spread and self.match_loop > 0 and self.weight_model != "likelihood":
+            raise ConfigError("loop_spread needs weight_model=likelihood (it writes the maps again as that model's "
+                              "updates do)")
         if self.track_scans and self.proposal != "scan_match":
             raise ConfigError("track_scans needs proposal=scan_match (it uses the scan matcher)")
         if 0 < self.mark_range <= self.max_range:

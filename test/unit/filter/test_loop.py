@@ -172,8 +172,7 @@ def _write(maps: TileMaps, pose, beams: Beams, steps, cfg: SlamConfig) -> None:
                            free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step, cfg.free_beam_spacing))
 
 
-def test_the_spread_needs_the_loop_search_and_the_likelihood_model():
-    with pytest.raises(ConfigError, match="loop_spread needs match_loop > 0"):
-        SlamConfig(**REAL, loop_spread=True)
-    with pytest.raises(ConfigError, match="loop_spread needs"):
+def test_the_spread_needs_the_likelihood_model_and_without_the_loop_search_does_nothing():
+    with pytest.raises(ConfigError, match="loop_spread needs weight_model=likelihood"):
         SlamConfig(**REAL, match_loop=0.25, loop_spread=True, weight_model="assignment")
+    SlamConfig(**REAL, loop_spread=True, weight_model="assignment")     # match_loop off: no jump to spread

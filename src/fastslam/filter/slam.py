@@ -441,8 +441,6 @@ class FastSlam:
         if start is None:
             return False
         path = spread_jump(path, start, before[src], after[src])
-        n = len(self.poses)
-        self.grid.reorder(np.full(n, b))
         self.poses[:] = self.poses[b]
         self.log_w[:] = 0.0
         self._carried[:] = 0.0

@@ -12,13 +12,12 @@ of the path lies near the place found, the jump is left as it is.
 """
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fastslam.filter.scan import Beams
-from fastslam.geometry import wrap_angle
+from fastslam.geometry import cos_sin, wrap_angle
 
 if TYPE_CHECKING:  # numpy.typing needs numpy >= 1.21 (Noetic has 1.17)
     from numpy.typing import NDArray
@@ -111,16 +110,17 @@ def spread_jump(path: NDArray[np.float64], start: int, before: NDArray[np.float6
     if len(path) - 2 <= start:
         return out
     seg = path[start:-1]
-    steps = np.diff(seg[:, :2], axis=0)                                   # (K, 2) world-frame steps
-    d = np.concatenate([[0.0], np.cumsum(np.hypot(steps[:, 0], steps[:, 1]))])
+    d = travelled(seg[:, :2])
     share = d / d[-1] if d[-1] > 0 else np.linspace(0.0, 1.0, len(d))
     turn = float(wrap_angle(after[2] - before[2]))
-    mid = 0.5 * (share[:-1] + share[1:]) * turn
-    c, s = np.cos(mid), np.sin(mid)
+    # unlike filter/smooth.py's gaps (one correction, scaled by each pose's share), each step is turned:
+    # a turn spread as one rigid correction swings the far end of a long loop (edmonton seed 4)
+    c, s = cos_sin(0.5 * (share[:-1] + share[1:]) * turn)
+    steps = np.diff(seg[:, :2], axis=0)
     turned = np.stack([c * steps[:, 0] - s * steps[:, 1], s * steps[:, 0] + c * steps[:, 1]], axis=1)
     xy = seg[0, :2] + np.concatenate([np.zeros((1, 2)), np.cumsum(turned, axis=0)])
     # where the jump takes row T-2: after composed with its pose relative to before
-    ct, st = math.cos(turn), math.sin(turn)
+    ct, st = cos_sin(turn)
     v = seg[-1, :2] - before[:2]
     target = after[:2] + np.array([ct * v[0] - st * v[1], st * v[0] + ct * v[1]])
     xy += share[:, None] * (target - xy[-1])

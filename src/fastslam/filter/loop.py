@@ -34,7 +34,6 @@ class ScanStore:
         self._hit: list[NDArray[np.bool_]] = []
         self._angles: list[NDArray[np.float64]] = []
         self._meta: list[tuple[float, tuple[float, float]]] = []
-        self.nbytes = 0
 
     def __len__(self) -> int:
         return len(self._ranges)
@@ -47,7 +46,12 @@ class ScanStore:
         self._hit.append(beams.hit.copy())
         self._angles.append(angles)
         self._meta.append((beams.range_min, beams.mount))
-        self.nbytes += 9 * len(beams.ranges) + (0 if same else angles.nbytes)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: 9 a beam, and each distinct set of beam directions once."""
+        directions = {id(a): a.nbytes for a in self._angles}
+        return 9 * sum(len(r) for r in self._ranges) + sum(directions.values())
 
     def beams(self, k: int) -> Beams:
         range_min, mount = self._meta[k]

@@ -4,9 +4,10 @@ When match_loop moves the particles onto a place seen long ago, each moved parti
 jumps: its path ends with a step as long as the drift since it was last there (ACES
 seed 1: 0.8 m at 867 s), and its map keeps the walls written during the drift, which
 it meets again later (a corner mapped at 683 s, 0.58 m off at 1181 s). Here the jump
-is spread back along the best particle's path since it was last at that place, in
-proportion to the distance travelled, and its map is written again from the scans kept,
-at the path's new poses. A straight spread holds only for one loop: if the path came
+is spread back along the best particle's path since it was last at that place, as a
+traverse is adjusted (each step turned by its share of the jump's turn, the rest spread
+by distance travelled), and its map is written again from the scans kept, at the path's
+new poses. A straight spread holds only for one loop: if the path came
 back in between to a place seen before (it was anchored there already), or if no pose
 of the path lies near the place found, the jump is left as it is.
 """

@@ -328,10 +328,26 @@ class FastSlam:
         return False, True, (f"map growth refused: {problem}; mapping goes on inside the map "
                              "(beams past its edge are clipped)") if first else ""
 
-    def _beam_frames(self, beams: Beams) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(N, 2) beam origins and (N, M) beam directions of every particle, map frame."""
-        x, y = transform_points(self.poses, np.array([beams.mount], dtype=np.float64))
-        return np.concatenate([x, y], axis=1), self.poses[:, 2, None] + beams.angles[None, :]
+    def _beam_frames(self, beams: Beams, poses: NDArray[np.float64] | None = None
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(N, 2) beam origins and (N, M) beam directions at poses (N, 3) (default every
+        particle's), map frame."""
+        poses = self.poses if poses is None else poses
+        x, y = transform_points(poses, np.array([beams.mount], dtype=np.float64))
+        return np.concatenate([x, y], axis=1), poses[:, 2, None] + beams.angles[None, :]
+
+    def _write_trimmed(self, grid: GridMaps, origins: NDArray[np.float64], angles: NDArray[np.float64],
+                       beams: Beams, weighing: Weighing | None = None,
+                       writer: trimmed.Writer | None = None) -> NDArray[np.float64] | None:
+        """The likelihood model's map update of grid's particles (trimmed.update_trimmed), as every
+        update writes it (and loop_spread writes it again); weighing: the weights first; writer:
+        the second process that writes some particles."""
+        cfg = self.cfg
+        return trimmed.update_trimmed(grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
+                                      groups=TRIM_GROUPS,
+                                      free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step,
+                                                                      cfg.free_beam_spacing),
+                                      weighing=weighing, writer=writer)
 
     def _propose(self, beams: Beams) -> int:
         """Moves each particle whose scan match is trusted to a sample around the match."""
@@ -454,17 +470,13 @@ class FastSlam:
     def _write_again(self, path: NDArray[np.float64]) -> None:
         """Every map rebuilt from the scans kept, the k-th written at path[k] (T, 3), one
         map written and shared by all (they hold the same path)."""
-        cfg, scans = self.cfg, self._scans
+        scans = self._scans
         assert scans is not None and len(scans) == len(path), "one kept scan per processed update"
         self.grid.clear()
         one = self.grid.view(0)
         for k in range(len(path)):   # as the updates wrote them, in order
             beams = scans.beams(k)
-            x, y = transform_points(path[k:k + 1], np.array([beams.mount], dtype=np.float64))
-            trimmed.update_trimmed(one, np.concatenate([x, y], axis=1), path[k:k + 1, 2, None] + beams.angles[None, :],
-                                   beams, self._steps, max_range=cfg.max_range, groups=TRIM_GROUPS,
-                                   free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step,
-                                                                   cfg.free_beam_spacing))
+            self._write_trimmed(one, *self._beam_frames(beams, path[k:k + 1]), beams)
         self.grid.reorder(np.zeros(len(self.poses), dtype=np.intp))
 
     def _wide_match(self, beams: Beams, first: int, stop: int) -> Match:
@@ -525,11 +537,7 @@ class FastSlam:
                 weighing = Weighing(at, sub, cfg.likelihood_sigma, cfg.likelihood_max_dist, cfg.likelihood_gain,
                                     cfg.likelihood_free)
             # each particle weighed against its map before this scan, then the scan written in
-            log_w = trimmed.update_trimmed(self.grid, origins, angles, beams, self._steps, max_range=cfg.max_range,
-                                           groups=TRIM_GROUPS,
-                                           free_step=trimmed.clearing_step(beams.angles, cfg.free_beam_step,
-                                                                           cfg.free_beam_spacing),
-                                           weighing=weighing, writer=self.tracker.writer)
+            log_w = self._write_trimmed(self.grid, origins, angles, beams, weighing, self.tracker.writer)
             if weighing is not None and log_w is not None and match is not None and cfg.match_weight == "normaliser":
                 # times the prior round the match
                 log_w = log_w + self._normaliser_terms(match, int(np.count_nonzero(weighing.beams.hit)))

@@ -170,9 +170,9 @@ class SlamConfig:
     match_loop_theta: float = _num(0.15, 0.0, math.pi, "match_loop: search half-width in heading [rad]")
     loop_spread: bool = field(default=False, metadata={
         "doc": "match_loop (nothing without it): a loop found is closed along the path: the best particle's jump "
-               "spread back along its path since it was last at that place (by distance travelled), its map written "
-               "again from the scans kept (9 bytes a beam per update) at the new poses, and every particle takes "
-               "that path and map"})
+               "spread back along its path since it was last at that place (as a traverse is adjusted), its map "
+               "written again from the scans kept (9 bytes a beam per update) at the new poses, and every particle "
+               "takes that path and map"})
     loop_spread_radius: float = _num(3.0, 0.0, 100.0, "loop_spread: the path's pose nearest the place found lies "
                                      "within this [m], and the path between came no nearer a place seen before "
                                      "it (else the jump stays)")
